@@ -1,0 +1,95 @@
+#include "shared/util/atomic_file.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <vector>
+
+namespace idi {
+namespace {
+
+std::string ErrnoText() { return std::strerror(errno); }
+
+Status WriteAll(int fd, std::string_view contents, const std::string& path) {
+  std::size_t done = 0;
+  while (done < contents.size()) {
+    const ssize_t n = ::write(fd, contents.data() + done, contents.size() - done);
+    if (n < 0) {
+      if (errno == EINTR) {
+        continue;
+      }
+      return IoError(path + ": write failed: " + ErrnoText());
+    }
+    done += static_cast<std::size_t>(n);
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status WriteFileAtomically(const std::string& path, std::string_view contents) {
+  namespace fs = std::filesystem;
+  const fs::path target(path);
+  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) {
+    return NotFound(path + ": folder " + dir.string() + " does not exist");
+  }
+  std::string tmpl = (dir / ("." + target.filename().string() + ".tmpXXXXXX")).string();
+  std::vector<char> name(tmpl.begin(), tmpl.end());
+  name.push_back('\0');
+  const int fd = ::mkstemp(name.data());
+  if (fd < 0) {
+    return IoError(path + ": cannot create a temporary file: " + ErrnoText());
+  }
+  const std::string tmp_path(name.data());
+  Status st = WriteAll(fd, contents, path);
+  if (st.ok() && ::fchmod(fd, 0644) != 0) {
+    st = IoError(path + ": chmod failed: " + ErrnoText());
+  }
+  if (st.ok() && ::fsync(fd) != 0) {
+    st = IoError(path + ": fsync failed: " + ErrnoText());
+  }
+  ::close(fd);
+  if (st.ok() && ::rename(tmp_path.c_str(), path.c_str()) != 0) {
+    st = IoError(path + ": rename failed: " + ErrnoText());
+  }
+  if (!st.ok()) {
+    ::unlink(tmp_path.c_str());
+    return st;
+  }
+  const int dir_fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
+  if (dir_fd >= 0) {
+    ::fsync(dir_fd);
+    ::close(dir_fd);
+  }
+  return Status::Ok();
+}
+
+Result<std::string> ReadFile(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    return NotFound(path + ": no such file");
+  }
+  if (std::filesystem::is_directory(path, ec)) {
+    return InvalidArgument(path + ": is a folder, expected a file");
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    return IoError(path + ": cannot open for reading");
+  }
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) {
+    return IoError(path + ": read failed");
+  }
+  return ss.str();
+}
+
+}  // namespace idi

@@ -1,0 +1,17 @@
+// Results and calibration files are written atomically: a temporary file in the same folder, fsync,
+// rename over the target, fsync the folder. A reader sees the old file or the new one, never half.
+#pragma once
+
+#include <string>
+#include <string_view>
+
+#include "shared/util/status.h"
+
+namespace idi {
+
+Status WriteFileAtomically(const std::string& path, std::string_view contents);
+
+// Reads a whole file; NotFound if it does not exist, IoError if it cannot be read.
+Result<std::string> ReadFile(const std::string& path);
+
+}  // namespace idi
