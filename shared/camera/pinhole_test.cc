@@ -1,0 +1,69 @@
+#include "shared/camera/pinhole.h"
+
+#include <gtest/gtest.h>
+
+namespace idi {
+namespace {
+
+CameraModel DistortedCamera() {
+  CameraModel c;
+  c.params = {812.0, 808.0, 321.3, 238.7, -0.21, 0.09, 0.0012, -0.0008, -0.01};
+  return c;
+}
+
+TEST(PinholeTest, ProjectsHandComputedPoint) {
+  CameraModel c;  // fx = fy = 800, principal point at the image centre (319.5, 239.5)
+  const auto px = Project(c, Vec3d(0.1, -0.05, 2.0));
+  ASSERT_TRUE(px.has_value());
+  EXPECT_NEAR(px->x(), 319.5 + 800 * 0.05, 1e-12);
+  EXPECT_NEAR(px->y(), 239.5 - 800 * 0.025, 1e-12);
+  EXPECT_FALSE(Project(c, Vec3d(0, 0, -1)).has_value());
+  EXPECT_FALSE(Project(c, Vec3d(0, 0, 0)).has_value());
+}
+
+TEST(PinholeTest, PixelCentreConvention) {
+  CameraModel c;
+  EXPECT_TRUE(c.InImage(Vec2d(-0.5, -0.5)));
+  EXPECT_TRUE(c.InImage(Vec2d(639.5, 479.5)));
+  EXPECT_FALSE(c.InImage(Vec2d(639.6, 10)));
+  // The optical axis lands on the principal point, which is the centre of a 640x480 image.
+  EXPECT_TRUE(Project(c, Vec3d(0, 0, 1))->isApprox(Vec2d(319.5, 239.5)));
+}
+
+TEST(PinholeTest, DistortionHandComputed) {
+  // Only k1 = 0.1: (0.5, 0) has r^2 = 0.25 so it moves out by a factor 1.025.
+  CameraModel c;
+  c.params[kK1] = 0.1;
+  const Vec2d px = *Project(c, Vec3d(0.5, 0.0, 1.0));
+  EXPECT_NEAR(px.x(), 319.5 + 800 * 0.5 * 1.025, 1e-9);
+  EXPECT_NEAR(px.y(), 239.5, 1e-12);
+}
+
+TEST(PinholeTest, UnprojectInvertsProject) {
+  const CameraModel c = DistortedCamera();
+  for (double x = -0.35; x <= 0.35; x += 0.07) {
+    for (double y = -0.28; y <= 0.28; y += 0.07) {
+      const Vec3d p(x * 3.0, y * 3.0, 3.0);
+      const Vec2d px = *Project(c, p);
+      const Vec3d ray = PixelToRay(c, px);
+      EXPECT_LT((ray - p.normalized()).norm(), 1e-11) << x << ", " << y;
+    }
+  }
+}
+
+TEST(PinholeTest, UndistortPixelIsIdentityWithoutDistortion) {
+  CameraModel c;
+  EXPECT_TRUE(UndistortPixel(c, Vec2d(10.25, 400.75)).isApprox(Vec2d(10.25, 400.75), 1e-12));
+}
+
+TEST(PinholeTest, ParamSetRoundTrip) {
+  const CameraModel c = DistortedCamera();
+  const ParamSet set = CameraToParamSet(c);
+  EXPECT_EQ(set.spec(0).Key(), "fx_px");
+  EXPECT_EQ(set.spec(4).Key(), "k1");
+  const CameraModel back = CameraFromParamSet(set, 640, 480);
+  EXPECT_EQ(back.params, c.params);
+}
+
+}  // namespace
+}  // namespace idi
