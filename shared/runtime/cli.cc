@@ -1,0 +1,114 @@
+#include "shared/runtime/cli.h"
+
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <sstream>
+
+#include "shared/runtime/logging.h"
+
+#ifndef IDI_VERSION
+#define IDI_VERSION "unknown"
+#endif
+
+namespace idi {
+
+int ExitCodeFor(const Status& status) {
+  if (status.ok()) {
+    return kExitOk;
+  }
+  switch (status.code()) {
+    case StatusCode::kInvalidArgument:
+    case StatusCode::kNotFound:
+    case StatusCode::kParseError:
+    case StatusCode::kOutOfRange:
+      return kExitBadInput;
+    default:
+      return kExitFailed;
+  }
+}
+
+CliApp::CliApp(const std::string& description, const std::string& program) : app(description, program) {
+  app.set_version_flag("--version", std::string(program) + " " + IDI_VERSION);
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
+  app.add_flag("-q,--quiet", quiet, "only warnings and errors on stderr");
+  app.require_subcommand(1);
+  app.fallthrough();
+}
+
+CLI::App* CliApp::AddCommand(CLI::App* parent, const std::string& name, const std::string& description,
+                             std::function<Status()> run) {
+  CLI::App* sub = parent->add_subcommand(name, description);
+  sub->parse_complete_callback([this, run = std::move(run)] { selected = run; });
+  return sub;
+}
+
+int RunCli(CliApp& cli, int argc, char** argv) {
+  try {
+    try {
+      cli.app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+      return cli.app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+      return cli.app.exit(e);
+    } catch (const CLI::CallForVersion& e) {
+      return cli.app.exit(e);
+    } catch (const CLI::ParseError& e) {
+      cli.app.exit(e);
+      return kExitBadInput;
+    }
+    LoggingOptions log;
+    log.program = cli.app.get_name();
+    ParseLogLevel(cli.log_level, &log.level);
+    if (cli.quiet && log.level < spdlog::level::warn) {
+      log.level = spdlog::level::warn;
+    }
+    InitLogging(log);
+    if (!cli.selected) {
+      std::fprintf(stderr, "%s", cli.app.help().c_str());
+      return kExitBadInput;
+    }
+    const Status st = cli.selected();
+    if (!st.ok()) {
+      spdlog::error("{}", st.message());
+      return ExitCodeFor(st);
+    }
+    return kExitOk;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: fatal: %s\n", cli.app.get_name().c_str(), e.what());
+    return kExitFailed;
+  }
+}
+
+Result<std::vector<double>> ParseNumberList(const std::string& text, std::size_t expected_count,
+                                            const std::string& what) {
+  std::vector<double> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    std::size_t used = 0;
+    double v = 0;
+    try {
+      v = std::stod(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    while (used < item.size() && std::isspace(static_cast<unsigned char>(item[used]))) {
+      ++used;
+    }
+    if (item.empty() || used != item.size() || !std::isfinite(v)) {
+      return InvalidArgument(what + ": '" + item + "' is not a finite number (in '" + text + "')");
+    }
+    out.push_back(v);
+  }
+  if (expected_count != 0 && out.size() != expected_count) {
+    return InvalidArgument(what + ": expected " + std::to_string(expected_count) + " comma-separated numbers, got " +
+                           std::to_string(out.size()) + " in '" + text + "'");
+  }
+  return out;
+}
+
+}  // namespace idi

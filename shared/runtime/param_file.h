@@ -1,0 +1,40 @@
+// Reading and writing named parameter sets as YAML (the calibration and model files).
+//
+// File format: one key per parameter, the key carrying the unit (`alpha2_deg`), holding either a
+// number or a map {value: <number>, std: <number>}:
+//   alpha2_deg: {value: -89.98121, std: 0.00054}
+//   a3_mm: 625.5
+// Validation: every parameter must be present, no unknown key is allowed (except those the caller
+// lists as extra sections), a key whose name matches a parameter but whose unit suffix does not is
+// reported as a unit error, and values must be finite. Errors name the file, the line and the key.
+#pragma once
+
+#include <yaml-cpp/yaml.h>
+
+#include <string>
+#include <vector>
+
+#include "shared/util/param_set.h"
+#include "shared/util/status.h"
+
+namespace idi {
+
+struct ParamFileOptions {
+  // Top-level keys that may appear besides the parameters (e.g. "model", "statistics").
+  std::vector<std::string> extra_keys = {"model", "comment"};
+  // When false, parameters missing from the file keep their nominal values.
+  bool require_all = true;
+};
+
+// Parses `node` (a YAML map) into a ParamSet of `specs`. `where` names the source in messages.
+Result<ParamSet> ParamSetFromYaml(const YAML::Node& node, const std::vector<ParamSpec>& specs,
+                                  const std::string& where, const ParamFileOptions& options = {});
+Result<ParamSet> LoadParamFile(const std::string& path, const std::vector<ParamSpec>& specs,
+                               const ParamFileOptions& options = {});
+
+// Emits `set` as YAML map entries (with std when known) into an emitter that is inside a map.
+void EmitParamSet(YAML::Emitter& out, const ParamSet& set);
+// Writes `set` (plus a leading `model: <model>` line) atomically.
+Status SaveParamFile(const std::string& path, const ParamSet& set, const std::string& model);
+
+}  // namespace idi

@@ -1,0 +1,110 @@
+#include "shared/runtime/param_file.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "shared/kinematics/rx130.h"
+#include "shared/util/atomic_file.h"
+
+namespace idi {
+namespace {
+
+namespace fs = std::filesystem;
+
+class ParamFileTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("idi_param_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // A valid robot file, with `replace` substituted for the line starting with `key`.
+  std::string WriteRobotFile(const std::string& key = "", const std::string& replace = "") {
+    ParamSet robot = Rx130Nominal();
+    robot.set_file_value(kA3, 625.5);
+    robot.set_stddev(kA3, 0.002);
+    const std::string path = (dir_ / "robot.yaml").string();
+    EXPECT_TRUE(SaveParamFile(path, robot, "rx130").ok());
+    if (key.empty()) {
+      return path;
+    }
+    std::ifstream in(path);
+    std::string line, text;
+    while (std::getline(in, line)) {
+      if (line.rfind(key + ":", 0) == 0) {
+        line = replace;
+      }
+      text += line + "\n";
+    }
+    EXPECT_TRUE(WriteFileAtomically(path, text).ok());
+    return path;
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(ParamFileTest, RoundTripKeepsValuesAndStd) {
+  const std::string path = WriteRobotFile();
+  const auto r = LoadParamFile(path, Rx130ParamSpecs());
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_NEAR(r->file_value(kA3), 625.5, 1e-12);
+  EXPECT_NEAR(r->file_stddev(kA3), 0.002, 1e-15);
+  EXPECT_NEAR(r->file_value(kAlpha4), -90.0, 1e-12);
+  EXPECT_TRUE(std::isnan(r->stddev(kA2)));
+}
+
+TEST_F(ParamFileTest, MissingKeyIsRejectedNamingFileAndKey) {
+  const std::string path = WriteRobotFile("d4_mm", "");
+  const auto r = LoadParamFile(path, Rx130ParamSpecs());
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("robot.yaml"), std::string::npos) << r.status().message();
+  EXPECT_NE(r.status().message().find("missing key 'd4_mm'"), std::string::npos) << r.status().message();
+}
+
+TEST_F(ParamFileTest, UnknownKeyIsRejected) {
+  const std::string path = WriteRobotFile("d4_mm", "d4_mm: 625\nd7_mm: 3");
+  const auto r = LoadParamFile(path, Rx130ParamSpecs());
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("unknown key 'd7_mm'"), std::string::npos) << r.status().message();
+  EXPECT_NE(r.status().message().find("robot.yaml:"), std::string::npos) << r.status().message();
+}
+
+TEST_F(ParamFileTest, WrongUnitSuffixIsRejected) {
+  const std::string path = WriteRobotFile("a3_mm", "a3_deg: 625");
+  const auto r = LoadParamFile(path, Rx130ParamSpecs());
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("key 'a3_deg': wrong unit, a3 is in mm (expected key 'a3_mm')"),
+            std::string::npos)
+      << r.status().message();
+}
+
+TEST_F(ParamFileTest, NanIsRejected) {
+  for (const std::string bad : {"alpha5_deg: .nan", "alpha5_deg: {value: .inf}", "alpha5_deg: {value: 90, std: .nan}"}) {
+    const std::string path = WriteRobotFile("alpha5_deg", bad);
+    const auto r = LoadParamFile(path, Rx130ParamSpecs());
+    ASSERT_FALSE(r.ok()) << bad;
+    EXPECT_NE(r.status().message().find("alpha5_deg"), std::string::npos) << r.status().message();
+    EXPECT_NE(r.status().message().find("not a finite number"), std::string::npos) << r.status().message();
+  }
+}
+
+TEST_F(ParamFileTest, NonNumberAndMalformedYamlAreRejected) {
+  std::string path = WriteRobotFile("a2_mm", "a2_mm: twelve");
+  auto r = LoadParamFile(path, Rx130ParamSpecs());
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("'twelve' is not a number"), std::string::npos) << r.status().message();
+  path = WriteRobotFile("a2_mm", "a2_mm: [1, 2");
+  r = LoadParamFile(path, Rx130ParamSpecs());
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("malformed YAML"), std::string::npos) << r.status().message();
+  r = LoadParamFile((dir_ / "absent.yaml").string(), Rx130ParamSpecs());
+  EXPECT_EQ(r.status().code(), StatusCode::kNotFound);
+}
+
+}  // namespace
+}  // namespace idi
