@@ -1,0 +1,13 @@
+// idi-workcell: the controller of the two-arm workcell (calibration, scanning, picking).
+#include "shared/runtime/cli.h"
+#include "workcell/app/kinematics_command.h"
+
+int main(int argc, char** argv) {
+  idi::CliApp cli(
+      "idi-workcell: calibrates the RX-130 arms, the rail and the pan-tilt cameras, reconstructs objects\n"
+      "from EMPL lines and IDI points, and picks them with the other arm.",
+      "idi-workcell");
+  idi::workcell::AddKinematicsCommand(cli);
+  idi::workcell::AddParamsCommand(cli);
+  return idi::RunCli(cli, argc, argv);
+}
