@@ -1,0 +1,45 @@
+// Time for devices and control loops. Real backends use the monotonic clock; the simulation drives
+// a SimClock so runs are deterministic and faster than real time. Timestamps are nanoseconds on the
+// clock's own time line (sample time, not arrival time).
+#pragma once
+
+#include <cstdint>
+
+namespace idi::hal {
+
+class Clock {
+ public:
+  virtual ~Clock() = default;
+  virtual int64_t NowNs() const = 0;
+  // Blocks (real) or advances simulated time (sim) until `t_ns`; returns immediately if past.
+  virtual void SleepUntilNs(int64_t t_ns) = 0;
+  void SleepForNs(int64_t dt_ns) { SleepUntilNs(NowNs() + dt_ns); }
+};
+
+// CLOCK_MONOTONIC.
+class MonotonicClock final : public Clock {
+ public:
+  int64_t NowNs() const override;
+  void SleepUntilNs(int64_t t_ns) override;
+};
+
+// Simulated time: starts at `start_ns`, moves only when advanced (or slept on).
+class SimClock final : public Clock {
+ public:
+  explicit SimClock(int64_t start_ns = 0) : now_ns_(start_ns) {}
+  int64_t NowNs() const override { return now_ns_; }
+  void SleepUntilNs(int64_t t_ns) override {
+    if (t_ns > now_ns_) now_ns_ = t_ns;
+  }
+  void AdvanceNs(int64_t dt_ns) { now_ns_ += dt_ns; }
+
+ private:
+  int64_t now_ns_;
+};
+
+inline constexpr int64_t kNsPerMs = 1'000'000;
+inline constexpr int64_t kNsPerSec = 1'000'000'000;
+inline double NsToSec(int64_t ns) { return static_cast<double>(ns) * 1e-9; }
+inline int64_t SecToNs(double s) { return static_cast<int64_t>(s * 1e9); }
+
+}  // namespace idi::hal
