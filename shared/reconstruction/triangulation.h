@@ -1,0 +1,42 @@
+// Triangulation of points from rays and of lines from planes (§8.4, §8.5), over two or more views.
+#pragma once
+
+#include <optional>
+#include <vector>
+
+#include "shared/reconstruction/epipolar.h"
+
+namespace idi {
+
+// One observation of a point: the view's camera (intrinsics with distortion and pose) and the pixel.
+struct PointObservation {
+  const CameraModel* camera = nullptr;
+  Rigid3d cam_from_world;
+  Vec2d pixel;
+};
+
+struct TriangulatedPoint {
+  Vec3d xyz;
+  double reprojection_rms_px = 0;      // over the observations
+  double min_ray_angle_rad = 0;        // largest angle between two rays (conditioning)
+};
+
+// Least squares over all rays (§8.4): the point closest to the back-projected rays, then refined by
+// Gauss-Newton on the reprojection error (so each view counts in pixels, not millimetres). nullopt
+// with fewer than two observations, rays (nearly) parallel, or the point behind a camera.
+std::optional<TriangulatedPoint> TriangulatePoint(const std::vector<PointObservation>& observations,
+                                                  double min_angle_rad = 1e-3);
+
+// One observation of a 3D line: its image line (undistorted pixel coordinates, normal . x = offset) in
+// a view with projection matrix P.
+struct LineObservation {
+  ProjectionMatrix34 p;
+  Line2d line;
+};
+
+// The 3D line from the back-projected planes B P X = 0 (eqs. 8.10-8.13): two views give two planes
+// whose intersection is the line; more views give the least-squares line, the 2D null space of the
+// stacked planes (SVD). nullopt when the planes are (nearly) parallel.
+std::optional<Line3d> TriangulateLine(const std::vector<LineObservation>& observations, double min_angle_rad = 1e-3);
+
+}  // namespace idi
