@@ -1,0 +1,221 @@
+#include "shared/grasp/grasp_planner.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "shared/util/units.h"
+
+namespace idi {
+namespace {
+
+double Cross2(const Vec2d& a, const Vec2d& b) { return a.x() * b.y() - a.y() * b.x(); }
+
+struct HullHit {
+  Vec2d point;
+  Vec2d normal;  // outward normal of the edge hit
+  double t = 0;  // parameter along the ray
+};
+
+// Where the line origin + t dir leaves the convex polygon (largest t), with that edge's outward normal.
+std::optional<HullHit> ExitPoint(const std::vector<Vec2d>& hull, const Vec2d& origin, const Vec2d& dir) {
+  std::optional<HullHit> best;
+  const std::size_t n = hull.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec2d a = hull[i], b = hull[(i + 1) % n];
+    const Vec2d e = b - a;
+    const double denom = Cross2(dir, e);
+    if (std::abs(denom) < 1e-12) continue;
+    const double t = Cross2(a - origin, e) / denom;
+    const double u = Cross2(a - origin, dir) / denom;
+    if (u < -1e-9 || u > 1 + 1e-9) continue;
+    if (!best || t > best->t) {
+      const Vec2d te = e.normalized();
+      best = HullHit{origin + t * dir, Vec2d(te.y(), -te.x()), t};
+    }
+  }
+  return best;
+}
+
+double AngleBetween(const Vec2d& a, const Vec2d& b) { return std::acos(std::clamp(a.dot(b), -1.0, 1.0)); }
+
+// A candidate grasp in the plane: contacts, their outward normals and the direction each finger pushes.
+struct PlanarGrasp {
+  std::vector<Vec2d> contacts, normals, pushes;  // contact 0 is the thumb (finger 3)
+  double spread_rad = 0;
+  double width_mm = 0;
+  Vec2d axis = Vec2d::UnitX();  // hand x axis (thumb towards fingers 1-2)
+  Vec2d centre = Vec2d::Zero();
+};
+
+// No-slip margin: every finger's push must lie inside the friction cone about the inward normal.
+double FrictionMargin(const PlanarGrasp& g, double cone) {
+  double margin = cone;
+  for (std::size_t k = 0; k < g.contacts.size(); ++k) {
+    margin = std::min(margin, cone - AngleBetween(g.pushes[k], -g.normals[k]));
+  }
+  return margin;
+}
+
+}  // namespace
+
+std::vector<Vec2d> ConvexHull2d(std::vector<Vec2d> p) {
+  std::sort(p.begin(), p.end(), [](const Vec2d& a, const Vec2d& b) {
+    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
+  });
+  p.erase(std::unique(p.begin(), p.end(), [](const Vec2d& a, const Vec2d& b) { return (a - b).norm() < 1e-9; }),
+          p.end());
+  if (p.size() < 3) return p;
+  std::vector<Vec2d> hull(2 * p.size());
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {  // lower hull (Andrew's monotone chain)
+    while (k >= 2 && Cross2(hull[k - 1] - hull[k - 2], p[i] - hull[k - 2]) <= 0) --k;
+    hull[k++] = p[i];
+  }
+  for (std::size_t i = p.size() - 1, t = k + 1; i > 0; --i) {  // upper hull
+    while (k >= t && Cross2(hull[k - 1] - hull[k - 2], p[i - 1] - hull[k - 2]) <= 0) --k;
+    hull[k++] = p[i - 1];
+  }
+  hull.resize(k - 1);
+  return hull;
+}
+
+Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_mm, const GraspOptions& o) {
+  if (!o.Check()) {
+    return InvalidArgument("grasp planning: invalid options");
+  }
+  if (points.size() < 3) {
+    return InvalidArgument("grasp planning: need at least 3 model points, got " + std::to_string(points.size()));
+  }
+  double z_top = -1e300;
+  for (const Vec3d& p : points) {
+    if (!p.allFinite()) return InvalidArgument("grasp planning: a model point is not finite");
+    z_top = std::max(z_top, p.z());
+  }
+  const double height = z_top - table_z_mm;
+  if (height < o.table_clearance_mm + 2.0) {
+    return NotFound("grasp planning: the object is only " + std::to_string(height) + " mm high");
+  }
+  // Silhouette at grasp height: for a solid object the top layer's outline (§8.11); the hull of all
+  // points equals it for objects standing on the table, and is the outline of flat objects.
+  std::vector<Vec2d> xy;
+  for (const Vec3d& p : points) xy.push_back(p.head<2>());
+  const std::vector<Vec2d> hull = ConvexHull2d(xy);
+  if (hull.size() < 3) {
+    return NotFound("grasp planning: the silhouette is degenerate (points in a line)");
+  }
+  Vec2d centroid = Vec2d::Zero();
+  double area = 0;
+  for (std::size_t i = 0; i < hull.size(); ++i) {
+    const Vec2d& a = hull[i];
+    const Vec2d& b = hull[(i + 1) % hull.size()];
+    const double c = Cross2(a, b);
+    area += c;
+    centroid += (a + b) * c;
+  }
+  centroid /= (3.0 * area);
+  const double contact_z =
+      std::max(z_top - std::min(o.grasp_depth_mm, 0.5 * height), table_z_mm + o.table_clearance_mm);
+  const double cone = std::atan(o.friction);
+  const double half_spacing = 0.5 * o.hand.finger_spacing_mm;
+
+  std::vector<PlanarGrasp> candidates;
+  // Two-on-one (spread 0): the thumb on a silhouette edge, pushing along its inward normal; fingers 1
+  // and 2, half the finger spacing either side, push back from the far side.
+  const std::size_t n = hull.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec2d a0 = hull[i], a1 = hull[(i + 1) % n];
+    const double len = (a1 - a0).norm();
+    if (len < o.hand.finger_width_mm) continue;
+    const Vec2d side = (a1 - a0) / len;
+    const Vec2d na(side.y(), -side.x());
+    const Vec2d axis = -na;
+    const double margin_along = 0.5 * o.hand.finger_width_mm;
+    const double s = std::clamp((centroid - a0).dot(side), margin_along, len - margin_along);
+    PlanarGrasp g;
+    g.axis = axis;
+    g.contacts.push_back(a0 + s * side);
+    g.normals.push_back(na);
+    g.pushes.push_back(axis);
+    bool ok = true;
+    for (const double off : {-half_spacing, half_spacing}) {
+      const auto hit = ExitPoint(hull, g.contacts[0] + off * side, axis);
+      if (!hit || hit->t <= 0) {
+        ok = false;
+        break;
+      }
+      g.contacts.push_back(hit->point);
+      g.normals.push_back(hit->normal);
+      g.pushes.push_back(-axis);
+      g.width_mm = std::max(g.width_mm, hit->t);
+    }
+    if (!ok) continue;
+    g.centre = g.contacts[0] + 0.5 * g.width_mm * axis;
+    g.spread_rad = 0;
+    candidates.push_back(g);
+  }
+  // Tripod (spread 60 degrees: the three fingers 120 degrees apart) closing on the centroid: suits
+  // round and three-sided objects.
+  for (int step = 0; step < 24; ++step) {
+    const double phi = 2.0 * kPi / 3.0 * step / 24.0;
+    PlanarGrasp g;
+    g.spread_rad = kPi / 3.0;
+    g.centre = centroid;
+    bool ok = true;
+    for (int k = 0; k < 3; ++k) {
+      const double ang = phi + 2.0 * kPi / 3.0 * k;
+      const Vec2d dir(std::cos(ang), std::sin(ang));
+      const auto hit = ExitPoint(hull, centroid, dir);
+      if (!hit || hit->t <= 0) {
+        ok = false;
+        break;
+      }
+      g.contacts.push_back(hit->point);
+      g.normals.push_back(hit->normal);
+      g.pushes.push_back(-dir);
+      g.width_mm = std::max(g.width_mm, 2.0 * hit->t);
+    }
+    if (!ok) continue;
+    const Vec2d thumb_dir = (g.contacts[0] - centroid).normalized();
+    g.axis = -thumb_dir;
+    candidates.push_back(g);
+  }
+
+  GraspPlan best;
+  bool found = false;
+  for (const PlanarGrasp& g : candidates) {
+    if (g.width_mm < o.hand.min_aperture_mm || g.width_mm > o.hand.max_aperture_mm) continue;
+    const double margin = FrictionMargin(g, cone);
+    if (margin <= 0) continue;
+    // Torque when lifting: the hand's centre line should pass near the silhouette's centroid.
+    const double offset = (g.centre - centroid).norm();
+    const double quality = margin / cone - offset / 50.0 - 0.2 * g.width_mm / o.hand.max_aperture_mm;
+    if (found && quality <= best.quality) continue;
+    found = true;
+    best.quality = quality;
+    best.width_mm = g.width_mm;
+    best.spread_rad = g.spread_rad;
+    best.friction_margin_rad = margin;
+    best.centroid_offset_mm = offset;
+    best.thumb_contact = Vec3d(g.contacts[0].x(), g.contacts[0].y(), contact_z);
+    Vec2d fingers = Vec2d::Zero();
+    for (std::size_t k = 1; k < g.contacts.size(); ++k) fingers += g.contacts[k];
+    fingers /= static_cast<double>(g.contacts.size() - 1);
+    best.finger_contact = Vec3d(fingers.x(), fingers.y(), contact_z);
+    // Hand frame: x along the grip (thumb towards fingers 1-2), z down, y = z cross x.
+    const Vec3d x(g.axis.x(), g.axis.y(), 0.0);
+    const Vec3d z(0, 0, -1);
+    const Vec3d y = z.cross(x);
+    best.world_from_grasp.rotation << x, y, z;
+    best.world_from_grasp.translation = Vec3d(g.centre.x(), g.centre.y(), contact_z);
+  }
+  if (!found) {
+    return NotFound("grasp planning: no grasp fits the hand with friction " + std::to_string(o.friction) + " (" +
+                    std::to_string(candidates.size()) + " candidates considered)");
+  }
+  best.candidates_considered = static_cast<int>(candidates.size());
+  best.world_from_approach = Translation(0.0, 0.0, o.approach_mm) * best.world_from_grasp;
+  best.world_from_lift = Translation(0.0, 0.0, o.lift_mm) * best.world_from_grasp;
+  return best;
+}
+
+}  // namespace idi
