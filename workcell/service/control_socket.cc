@@ -1,0 +1,205 @@
+#include "workcell/service/control_socket.h"
+
+#include <fcntl.h>
+#include <grp.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <spdlog/spdlog.h>
+
+namespace idi::workcell {
+namespace {
+
+std::string Errno() { return std::strerror(errno); }
+
+Result<sockaddr_un> SocketAddress(const std::string& path) {
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  if (path.empty() || path.size() >= sizeof(addr.sun_path)) {
+    return InvalidArgument("control socket path '" + path + "' is empty or longer than " +
+                           std::to_string(sizeof(addr.sun_path) - 1) + " bytes");
+  }
+  std::memcpy(addr.sun_path, path.c_str(), path.size() + 1);
+  return addr;
+}
+
+// Reads one line (without the newline) within `timeout`; fails on timeout, EOF before a newline, or
+// more than kMaxRequestBytes.
+Result<std::string> ReadLine(int fd, std::chrono::milliseconds timeout) {
+  std::string line;
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  char buf[4096];
+  while (true) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) return Timeout("no complete line within " + std::to_string(timeout.count()) + " ms");
+    pollfd p{fd, POLLIN, 0};
+    const int r = ::poll(&p, 1, static_cast<int>(left.count()));
+    if (r < 0 && errno == EINTR) continue;
+    if (r < 0) return IoError("poll: " + Errno());
+    if (r == 0) continue;
+    const ssize_t n = ::read(fd, buf, sizeof(buf));
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) return IoError("read: " + Errno());
+    if (n == 0) return IoError("connection closed before a complete line");
+    line.append(buf, static_cast<std::size_t>(n));
+    const auto nl = line.find('\n');
+    if (nl != std::string::npos) {
+      line.resize(nl);
+      return line;
+    }
+    if (line.size() > kMaxRequestBytes) return InvalidArgument("line longer than " + std::to_string(kMaxRequestBytes) + " bytes");
+  }
+}
+
+Status WriteAll(int fd, const std::string& data) {
+  std::size_t done = 0;
+  while (done < data.size()) {
+    const ssize_t n = ::send(fd, data.data() + done, data.size() - done, MSG_NOSIGNAL);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) return IoError("write: " + Errno());
+    done += static_cast<std::size_t>(n);
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<std::unique_ptr<ControlServer>> ControlServer::Start(const ControlServerOptions& options, Handler handler) {
+  IDI_ASSIGN_OR_RETURN(const sockaddr_un addr, SocketAddress(options.path));
+  gid_t gid = static_cast<gid_t>(-1);
+  if (!options.group.empty()) {
+    const group* g = ::getgrnam(options.group.c_str());
+    if (g == nullptr) return InvalidArgument("control socket group '" + options.group + "' does not exist");
+    gid = g->gr_gid;
+  }
+  // A socket file left by a crashed service is removed; one with a live listener is not.
+  if (::access(options.path.c_str(), F_OK) == 0) {
+    const int probe = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    const bool live = probe >= 0 && ::connect(probe, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) == 0;
+    if (probe >= 0) ::close(probe);
+    if (live) return FailedPrecondition(options.path + ": another idi-workcell service is already listening");
+    ::unlink(options.path.c_str());
+  }
+  const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return IoError("control socket: " + Errno());
+  const mode_t old_mask = ::umask(0117);  // the file is created 0660
+  const int bound = ::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr));
+  ::umask(old_mask);
+  if (bound != 0) {
+    const std::string err = Errno();
+    ::close(fd);
+    return IoError(options.path + ": bind failed: " + err);
+  }
+  if (gid != static_cast<gid_t>(-1) && ::chown(options.path.c_str(), static_cast<uid_t>(-1), gid) != 0) {
+    const std::string err = Errno();
+    ::close(fd);
+    ::unlink(options.path.c_str());
+    return IoError(options.path + ": cannot give the socket to group '" + options.group + "': " + err);
+  }
+  if (::listen(fd, 8) != 0) {
+    const std::string err = Errno();
+    ::close(fd);
+    ::unlink(options.path.c_str());
+    return IoError(options.path + ": listen failed: " + err);
+  }
+  int pipe_fds[2];
+  if (::pipe2(pipe_fds, O_CLOEXEC | O_NONBLOCK) != 0) {
+    ::close(fd);
+    ::unlink(options.path.c_str());
+    return IoError("control socket: pipe: " + Errno());
+  }
+  return std::unique_ptr<ControlServer>(new ControlServer(options, std::move(handler), fd, pipe_fds[0], pipe_fds[1]));
+}
+
+ControlServer::ControlServer(ControlServerOptions options, Handler handler, int listen_fd, int wake_read, int wake_write)
+    : options_(std::move(options)),
+      handler_(std::move(handler)),
+      listen_fd_(listen_fd),
+      wake_read_(wake_read),
+      wake_write_(wake_write) {
+  thread_ = std::thread([this] { Serve(); });
+}
+
+ControlServer::~ControlServer() { Stop(); }
+
+void ControlServer::Stop() {
+  if (stopping_.exchange(true)) return;
+  const char c = 'x';
+  [[maybe_unused]] const ssize_t n = ::write(wake_write_, &c, 1);
+  if (thread_.joinable()) thread_.join();
+  ::close(listen_fd_);
+  ::close(wake_read_);
+  ::close(wake_write_);
+  ::unlink(options_.path.c_str());
+}
+
+void ControlServer::Serve() {
+  while (!stopping_.load()) {
+    pollfd p[2] = {{listen_fd_, POLLIN, 0}, {wake_read_, POLLIN, 0}};
+    const int r = ::poll(p, 2, -1);
+    if (r < 0) {
+      if (errno == EINTR) continue;
+      spdlog::error("control socket: poll failed: {}", Errno());
+      return;
+    }
+    if (p[1].revents != 0) return;
+    if ((p[0].revents & POLLIN) == 0) continue;
+    const int client = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC);
+    if (client < 0) continue;
+    HandleClient(client);
+    ::close(client);
+  }
+}
+
+void ControlServer::HandleClient(int fd) {
+  const Result<std::string> line = ReadLine(fd, options_.client_timeout);
+  nlohmann::json reply;
+  if (!line.ok()) {
+    ++rejected_;
+    reply = ErrorReply("bad request: " + line.status().message());
+  } else {
+    const Result<ControlRequest> request = ParseControlRequest(*line);
+    if (!request.ok()) {
+      ++rejected_;
+      reply = ErrorReply("bad request: " + request.status().message());
+      spdlog::warn("control socket: rejected a request: {}", request.status().message());
+    } else {
+      ++served_;
+      reply = handler_(*request);
+    }
+  }
+  (void)WriteAll(fd, reply.dump() + "\n");
+}
+
+Result<nlohmann::json> SendControlRequest(const std::string& path, const ControlRequest& request,
+                                          std::chrono::milliseconds timeout) {
+  IDI_ASSIGN_OR_RETURN(const sockaddr_un addr, SocketAddress(path));
+  const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return IoError("control socket: " + Errno());
+  if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) != 0) {
+    const int err = errno;
+    ::close(fd);
+    if (err == EACCES) {
+      return FailedPrecondition(path + ": permission denied (is your user in the service's control group?)");
+    }
+    return FailedPrecondition(path + ": no idi-workcell service is listening (" + std::strerror(err) + ")");
+  }
+  Status st = WriteAll(fd, SerializeControlRequest(request) + "\n");
+  if (!st.ok()) {
+    ::close(fd);
+    return st.WithContext(path);
+  }
+  const Result<std::string> line = ReadLine(fd, timeout);
+  ::close(fd);
+  if (!line.ok()) return line.status().WithContext(path + ": no reply");
+  nlohmann::json reply = nlohmann::json::parse(*line, nullptr, false);
+  if (reply.is_discarded() || !reply.is_object()) return DeviceError(path + ": the service sent a malformed reply");
+  return reply;
+}
+
+}  // namespace idi::workcell

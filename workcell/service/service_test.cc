@@ -1,0 +1,243 @@
+#include "workcell/service/service.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <thread>
+
+#include "shared/util/atomic_file.h"
+#include "workcell/service/control_socket.h"
+
+namespace idi::workcell {
+namespace {
+
+namespace fs = std::filesystem;
+
+class FakeDevices : public DeviceSet {
+ public:
+  Status Connect() override { return connect_status; }
+  Status Home() override { return Status::Ok(); }
+  Status StopAll() override {
+    ++stops;
+    return Status::Ok();
+  }
+  nlohmann::json Health() override { return {{"fake", true}}; }
+  Status connect_status = Status::Ok();
+  std::atomic<int> stops{0};
+};
+
+std::string TempState(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("idi_service_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir.string();
+}
+
+template <typename Pred>
+bool WaitFor(Pred pred, int ms = 5000) {
+  for (int i = 0; i < ms / 5; ++i) {
+    if (pred()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return pred();
+}
+
+ControlRequest Job(const std::string& name, nlohmann::json args = nlohmann::json::object()) {
+  ControlRequest r;
+  r.command = ControlCommand::kJob;
+  r.job = name;
+  r.args = std::move(args);
+  return r;
+}
+
+JobSpec CountingJob(std::atomic<int>* runs) {
+  JobSpec j;
+  j.name = "count";
+  j.description = "counts";
+  j.validate = [](const nlohmann::json& a) {
+    return a.contains("n") && !a["n"].is_number_integer() ? InvalidArgument("args.n must be an integer") : Status::Ok();
+  };
+  j.run = [runs](JobContext& ctx, const nlohmann::json&) -> Result<nlohmann::json> {
+    ctx.progress(0.5, "half way");
+    ++*runs;
+    return nlohmann::json{{"runs", runs->load()}};
+  };
+  return j;
+}
+
+JobSpec SlowJob(std::atomic<bool>* started) {
+  JobSpec j;
+  j.name = "slow";
+  j.run = [started](JobContext& ctx, const nlohmann::json&) -> Result<nlohmann::json> {
+    *started = true;
+    while (!ctx.cancelled()) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    return Cancelled("stopped by the operator");
+  };
+  return j;
+}
+
+JobSpec FaultyJob() {
+  JobSpec j;
+  j.name = "faulty";
+  j.run = [](JobContext&, const nlohmann::json&) -> Result<nlohmann::json> {
+    return DeviceError("arm 1: controller stopped answering");
+  };
+  return j;
+}
+
+TEST(ServiceTest, RunsJobsAndWritesReports) {
+  FakeDevices dev;
+  std::atomic<int> runs{0};
+  ServiceOptions opt;
+  opt.state_dir = TempState("jobs");
+  WorkcellService svc(opt, &dev, {CountingJob(&runs)});
+  std::thread t([&] { ASSERT_TRUE(svc.Run().ok()); });
+  ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kIdle; }));
+  EXPECT_TRUE(svc.Handle(Job("count"))["ok"].get<bool>());
+  EXPECT_TRUE(WaitFor([&] { return runs == 1 && svc.state() == ServiceState::kIdle; }));
+  // Validation happens before queuing; unknown jobs are refused.
+  EXPECT_FALSE(svc.Handle(Job("count", {{"n", "three"}}))["ok"].get<bool>());
+  const auto unknown = svc.Handle(Job("dance"));
+  EXPECT_FALSE(unknown["ok"].get<bool>());
+  EXPECT_NE(unknown["error"].get<std::string>().find("unknown job"), std::string::npos);
+  svc.RequestShutdown();
+  t.join();
+  int reports = 0;
+  for (const auto& e : fs::recursive_directory_iterator(fs::path(opt.state_dir) / "runs")) {
+    reports += e.path().filename() == "report.json";
+  }
+  EXPECT_EQ(reports, 1);
+  EXPECT_GE(dev.stops, 1);  // devices stopped on the way out
+  fs::remove_all(opt.state_dir);
+}
+
+TEST(ServiceTest, StopCancelsTheRunningJobAndStopsDevices) {
+  FakeDevices dev;
+  std::atomic<bool> started{false};
+  ServiceOptions opt;
+  opt.state_dir = TempState("stop");
+  WorkcellService svc(opt, &dev, {SlowJob(&started)});
+  std::thread t([&] { (void)svc.Run(); });
+  ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kIdle; }));
+  svc.Handle(Job("slow"));
+  ASSERT_TRUE(WaitFor([&] { return started.load(); }));
+  EXPECT_EQ(svc.state(), ServiceState::kBusy);
+  const int stops_before = dev.stops;
+  ControlRequest stop;
+  stop.command = ControlCommand::kStop;
+  EXPECT_TRUE(svc.Handle(stop)["ok"].get<bool>());
+  EXPECT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kIdle; }));
+  EXPECT_GT(dev.stops, stops_before);
+  svc.RequestShutdown();
+  t.join();
+  fs::remove_all(opt.state_dir);
+}
+
+TEST(ServiceTest, DeviceFaultParksInFaultUntilReset) {
+  FakeDevices dev;
+  ServiceOptions opt;
+  opt.state_dir = TempState("fault");
+  std::atomic<int> runs{0};
+  WorkcellService svc(opt, &dev, {FaultyJob(), CountingJob(&runs)});
+  std::thread t([&] { (void)svc.Run(); });
+  ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kIdle; }));
+  svc.Handle(Job("faulty"));
+  ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kFault; }));
+  EXPECT_FALSE(svc.Handle(Job("count"))["ok"].get<bool>());  // refused while in fault
+  ControlRequest reset;
+  reset.command = ControlCommand::kReset;
+  EXPECT_TRUE(svc.Handle(reset)["ok"].get<bool>());
+  ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kIdle; }));
+  svc.Handle(Job("count"));
+  EXPECT_TRUE(WaitFor([&] { return runs == 1; }));
+  svc.RequestShutdown();
+  t.join();
+  fs::remove_all(opt.state_dir);
+}
+
+TEST(ServiceTest, FailedStartupIsAFaultAndMissingCalibrationQueuesCalibration) {
+  FakeDevices dev;
+  dev.connect_status = Timeout("arm 2: no answer from 192.168.0.12:4000");
+  ServiceOptions opt;
+  opt.state_dir = TempState("startup");
+  std::atomic<int> runs{0};
+  opt.calibration_jobs = {"count"};
+  opt.required_calibration_items = {"robot1"};
+  WorkcellService svc(opt, &dev, {CountingJob(&runs)});
+  std::thread t([&] { (void)svc.Run(); });
+  ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kFault; }));
+  EXPECT_NE(svc.StatusJson()["reason"].get<std::string>().find("no answer"), std::string::npos);
+  // The devices come back; reset reconnects and the missing calibration queues the calibration job.
+  dev.connect_status = Status::Ok();
+  ControlRequest reset;
+  reset.command = ControlCommand::kReset;
+  svc.Handle(reset);
+  EXPECT_TRUE(WaitFor([&] { return runs == 1; }));
+  svc.RequestShutdown();
+  t.join();
+  fs::remove_all(opt.state_dir);
+}
+
+TEST(CalibrationStoreTest, CommitsAtomicallyAndSurvivesAnInterruptedCommit) {
+  const std::string state = TempState("calib");
+  CalibrationStore store(state);
+  ASSERT_TRUE(store.Open().ok());
+  EXPECT_FALSE(store.Current()->has_value());
+  auto v1 = store.Commit({{"robot1", "a3_mm: 625.5\n"}}, 1000);
+  ASSERT_TRUE(v1.ok()) << v1.status().ToString();
+  auto v2 = store.Commit({{"rail", "psi_x_mm: 4000\n"}}, 2000);
+  ASSERT_TRUE(v2.ok());
+  EXPECT_EQ(v2->number, 2);
+  EXPECT_EQ(v2->items.size(), 2u);  // robot1 carried over
+  // A commit killed half way leaves a temporary folder; the current calibration is untouched and
+  // the leftover is cleaned at the next open.
+  fs::create_directories(fs::path(store.root()) / "versions" / ".tmp-0003");
+  ASSERT_TRUE(WriteFileAtomically((fs::path(store.root()) / "versions" / ".tmp-0003" / "robot1.yaml").string(), "x").ok());
+  CalibrationStore reopened(state);
+  ASSERT_TRUE(reopened.Open().ok());
+  const auto cur = reopened.Current();
+  ASSERT_TRUE(cur.ok() && cur->has_value());
+  EXPECT_EQ((*cur)->number, 2);
+  EXPECT_EQ(ReadFile(*reopened.CurrentItemPath("robot1")).value(), "a3_mm: 625.5\n");
+  EXPECT_FALSE(fs::exists(fs::path(store.root()) / "versions" / ".tmp-0003"));
+  EXPECT_EQ(reopened.CurrentItemPath("ptu-left").status().code(), StatusCode::kNotFound);
+  fs::remove_all(state);
+}
+
+TEST(ControlSocketTest, RoundTripAndValidation) {
+  const std::string dir = TempState("socket");
+  ControlServerOptions opt;
+  opt.path = dir + "/control.sock";
+  opt.client_timeout = std::chrono::milliseconds(300);
+  auto server = ControlServer::Start(opt, [](const ControlRequest& r) {
+    return OkReply({{"echo", ControlCommandName(r.command)}, {"job", r.job}});
+  });
+  ASSERT_TRUE(server.ok()) << server.status().ToString();
+  EXPECT_EQ(fs::status(opt.path).permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::group_write);
+  const auto reply = SendControlRequest(opt.path, Job("scan", {{"views", 6}}));
+  ASSERT_TRUE(reply.ok()) << reply.status().ToString();
+  EXPECT_EQ((*reply)["echo"], "job");
+  EXPECT_EQ((*reply)["job"], "scan");
+  // A second server on the same path is refused while the first listens.
+  EXPECT_EQ(ControlServer::Start(opt, [](const ControlRequest&) { return OkReply(); }).status().code(),
+            StatusCode::kFailedPrecondition);
+  (*server)->Stop();
+  EXPECT_FALSE(fs::exists(opt.path));
+  EXPECT_EQ(SendControlRequest(opt.path, Job("scan")).status().code(), StatusCode::kFailedPrecondition);
+  fs::remove_all(dir);
+}
+
+TEST(ControlProtocolTest, RejectsMalformedRequests) {
+  EXPECT_TRUE(ParseControlRequest(R"({"cmd":"status"})").ok());
+  EXPECT_TRUE(ParseControlRequest(R"({"cmd":"job","job":"scan","args":{"views":6}})").ok());
+  for (const std::string bad : {"", "nonsense", "[1,2]", R"({"cmd":5})", R"({"cmd":"dance"})",
+                                R"({"cmd":"job"})", R"({"cmd":"job","job":""})", R"({"cmd":"job","job":"x","args":3})",
+                                R"({"cmd":"status","extra":1})"}) {
+    EXPECT_FALSE(ParseControlRequest(bad).ok()) << bad;
+  }
+  EXPECT_FALSE(ParseControlRequest(std::string(kMaxRequestBytes + 10, ' ')).ok());
+}
+
+}  // namespace
+}  // namespace idi::workcell
