@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <sys/ioctl.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
 #include <termios.h>
 #include <unistd.h>
@@ -113,7 +114,10 @@ std::unique_ptr<SerialPort> SerialPort::FromFd(int fd, std::string name, const S
 }
 
 SerialPort::SerialPort(int fd, std::string name, const SerialOptions& options)
-    : fd_(fd), name_(std::move(name)), options_(options) {}
+    : fd_(fd), name_(std::move(name)), options_(options) {
+  struct stat st {};
+  is_socket_ = ::fstat(fd_, &st) == 0 && S_ISSOCK(st.st_mode);
+}
 
 SerialPort::~SerialPort() {
   if (fd_ >= 0) {
@@ -125,7 +129,9 @@ Status SerialPort::Write(std::string_view bytes, std::chrono::milliseconds timeo
   const auto deadline = SerialClock::now() + timeout;
   std::size_t done = 0;
   while (done < bytes.size()) {
-    const ssize_t n = ::write(fd_, bytes.data() + done, bytes.size() - done);
+    // On a socket, send without SIGPIPE: a peer that went away is an IoError, not a dead process.
+    const ssize_t n = is_socket_ ? ::send(fd_, bytes.data() + done, bytes.size() - done, MSG_NOSIGNAL)
+                                 : ::write(fd_, bytes.data() + done, bytes.size() - done);
     if (n > 0) {
       done += static_cast<std::size_t>(n);
       continue;

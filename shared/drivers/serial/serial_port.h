@@ -3,6 +3,9 @@
 // line/delimiter framing on top of an internal buffer. Also wraps an already open descriptor (a
 // pseudo-terminal master in the device emulators) so both ends share one implementation.
 //
+// The same framing serves stream sockets (FromFd on a connected TCP socket): writes then use
+// MSG_NOSIGNAL, and a closed peer reads as a hang-up (IoError).
+//
 // Every error names the port and what failed. Not thread-safe: one owner per port.
 #pragma once
 
@@ -70,6 +73,7 @@ class SerialPort {
   Result<bool> FillBuffer(int timeout_ms);
 
   int fd_ = -1;
+  bool is_socket_ = false;
   std::string name_;
   SerialOptions options_;
   std::string buffer_;
