@@ -1,0 +1,294 @@
+// FeatureDetector: the pipeline of features.h, options checks and the bounds.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <string>
+
+#include "shared/features/active_contour.h"
+#include "shared/features/empl.h"
+#include "shared/features/features.h"
+#include "shared/features/gradient.h"
+#include "shared/features/hough.h"
+#include "shared/features/idi_points.h"
+#include "shared/features/pixel_geometry.h"
+
+namespace idi {
+namespace {
+
+constexpr double kDetPi = 3.14159265358979323846;
+
+Status Positive(double v, const char* name) {
+  if (!(v > 0) || !std::isfinite(v)) {
+    return InvalidArgument(std::string(name) + " must be positive and finite, got " + std::to_string(v));
+  }
+  return Status::Ok();
+}
+
+Status NonNegative(double v, const char* name) {
+  if (!(v >= 0) || !std::isfinite(v)) {
+    return InvalidArgument(std::string(name) + " must be >= 0 and finite, got " + std::to_string(v));
+  }
+  return Status::Ok();
+}
+
+Status InRange(double v, double lo, double hi, const char* name) {
+  if (!(v >= lo && v <= hi)) {
+    return InvalidArgument(std::string(name) + " must be in [" + std::to_string(lo) + ", " + std::to_string(hi) +
+                           "], got " + std::to_string(v));
+  }
+  return Status::Ok();
+}
+
+double Ms(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+}  // namespace
+
+Status EdgeOptions::Check() const {
+  IDI_RETURN_IF_ERROR(InRange(smoothing_sigma_px, 0.3, 5.0, "edges.smoothing_sigma_px"));
+  IDI_RETURN_IF_ERROR(Positive(low_threshold_sigmas, "edges.low_threshold_sigmas"));
+  IDI_RETURN_IF_ERROR(Positive(high_threshold_sigmas, "edges.high_threshold_sigmas"));
+  IDI_RETURN_IF_ERROR(NonNegative(min_low_threshold, "edges.min_low_threshold"));
+  IDI_RETURN_IF_ERROR(NonNegative(min_high_threshold, "edges.min_high_threshold"));
+  if (high_threshold_sigmas < low_threshold_sigmas) {
+    return InvalidArgument("edges.high_threshold_sigmas must be >= edges.low_threshold_sigmas");
+  }
+  return Status::Ok();
+}
+
+Status HoughOptions::Check() const {
+  IDI_RETURN_IF_ERROR(InRange(angle_step_deg, 0.1, 10.0, "hough.angle_step_deg"));
+  IDI_RETURN_IF_ERROR(InRange(offset_step_px, 0.25, 10.0, "hough.offset_step_px"));
+  IDI_RETURN_IF_ERROR(InRange(vote_window_deg, 0.0, 45.0, "hough.vote_window_deg"));
+  IDI_RETURN_IF_ERROR(InRange(band_px, 0.5, 5.0, "hough.band_px"));
+  IDI_RETURN_IF_ERROR(InRange(max_angle_error_deg, 1.0, 89.0, "hough.max_angle_error_deg"));
+  IDI_RETURN_IF_ERROR(NonNegative(max_gap_px, "hough.max_gap_px"));
+  IDI_RETURN_IF_ERROR(InRange(min_length_px, 4.0, 1e5, "hough.min_length_px"));
+  IDI_RETURN_IF_ERROR(InRange(min_fill, 0.05, 1.0, "hough.min_fill"));
+  if (max_lines < 1) {
+    return InvalidArgument("hough.max_lines must be >= 1");
+  }
+  return Status::Ok();
+}
+
+Status EmplOptions::Check() const {
+  IDI_RETURN_IF_ERROR(InRange(band_halfwidth_px, 1.0, 20.0, "empl.band_halfwidth_px"));
+  IDI_RETURN_IF_ERROR(NonNegative(threshold_alpha, "empl.threshold_alpha"));
+  IDI_RETURN_IF_ERROR(Positive(threshold_window_px, "empl.threshold_window_px"));
+  IDI_RETURN_IF_ERROR(InRange(max_angle_error_deg, 1.0, 89.0, "empl.max_angle_error_deg"));
+  if (max_iterations < 1) {
+    return InvalidArgument("empl.max_iterations must be >= 1");
+  }
+  IDI_RETURN_IF_ERROR(Positive(outlier_sigmas, "empl.outlier_sigmas"));
+  IDI_RETURN_IF_ERROR(InRange(chunk_length_px, 4.0, 1e5, "empl.chunk_length_px"));
+  IDI_RETURN_IF_ERROR(NonNegative(end_margin_px, "empl.end_margin_px"));
+  IDI_RETURN_IF_ERROR(NonNegative(merge_angle_deg, "empl.merge_angle_deg"));
+  IDI_RETURN_IF_ERROR(NonNegative(merge_offset_px, "empl.merge_offset_px"));
+  IDI_RETURN_IF_ERROR(Positive(split_angle_deg, "empl.split_angle_deg"));
+  IDI_RETURN_IF_ERROR(NonNegative(extension_fraction, "empl.extension_fraction"));
+  IDI_RETURN_IF_ERROR(NonNegative(min_extension_px, "empl.min_extension_px"));
+  if (!(max_extension_px >= min_extension_px)) {
+    return InvalidArgument("empl.max_extension_px must be >= empl.min_extension_px");
+  }
+  return Status::Ok();
+}
+
+Status IdiOptions::Check() const {
+  IDI_RETURN_IF_ERROR(InRange(min_angle_deg, 0.1, 89.0, "idi.min_angle_deg"));
+  IDI_RETURN_IF_ERROR(NonNegative(merge_radius_px, "idi.merge_radius_px"));
+  IDI_RETURN_IF_ERROR(NonNegative(image_margin_px, "idi.image_margin_px"));
+  return Status::Ok();
+}
+
+Status CurveOptions::Check() const {
+  IDI_RETURN_IF_ERROR(InRange(min_length_px, 5.0, 1e5, "curves.min_length_px"));
+  IDI_RETURN_IF_ERROR(InRange(point_spacing_px, 1.0, 50.0, "curves.point_spacing_px"));
+  IDI_RETURN_IF_ERROR(NonNegative(alpha, "curves.alpha"));
+  IDI_RETURN_IF_ERROR(NonNegative(beta, "curves.beta"));
+  IDI_RETURN_IF_ERROR(NonNegative(gamma, "curves.gamma"));
+  if (max_iterations < 0) {
+    return InvalidArgument("curves.max_iterations must be >= 0");
+  }
+  IDI_RETURN_IF_ERROR(Positive(straight_rms_px, "curves.straight_rms_px"));
+  return Status::Ok();
+}
+
+Status FeatureOptions::Check() const {
+  IDI_RETURN_IF_ERROR(edges.Check());
+  IDI_RETURN_IF_ERROR(hough.Check());
+  IDI_RETURN_IF_ERROR(empl.Check());
+  IDI_RETURN_IF_ERROR(idi.Check());
+  IDI_RETURN_IF_ERROR(curves.Check());
+  return Status::Ok();
+}
+
+double EmplLine::Angle() const { return std::atan2(normal.y(), normal.x()); }
+
+Eigen::Vector2d EmplLine::Direction() const {
+  const Eigen::Vector2d d = p2 - p1;
+  const double n = d.norm();
+  return n > 0 ? Eigen::Vector2d(d / n) : Eigen::Vector2d(-normal.y(), normal.x());
+}
+
+double OffsetBoundPx(double contrast, double noise_sigma, double blur_sigma_px, double length_px) {
+  const double sigma_e = std::sqrt(blur_sigma_px * blur_sigma_px + 1.0 / 12.0);
+  return noise_sigma / contrast * std::sqrt(2.0 * std::sqrt(kDetPi) * sigma_e / length_px);
+}
+
+double AngleBoundRad(double contrast, double noise_sigma, double blur_sigma_px, double length_px) {
+  const double sigma_e = std::sqrt(blur_sigma_px * blur_sigma_px + 1.0 / 12.0);
+  return noise_sigma / contrast * std::sqrt(24.0 * std::sqrt(kDetPi) * sigma_e / (length_px * length_px * length_px));
+}
+
+struct FeatureDetector::Impl {
+  FeatureOptions options;
+  std::optional<CameraModel> camera;
+  PixelGeometry geometry;
+  GradientImages gradients;
+  EdgeMap edges;
+  HoughLineFinder hough;
+
+  // Merges collinear pieces (§8.8.2): same line to within the tolerances, gap no larger than the
+  // Hough gap (or overlapping, i.e. two peaks of one edge).
+  void MergeCollinear(const EmplFitter& fitter, std::vector<EmplFitResult>* fits) const {
+    const EmplOptions& eo = options.empl;
+    for (int pass = 0; pass < 8; ++pass) {
+      bool merged = false;
+      for (std::size_t i = 0; i < fits->size() && !merged; ++i) {
+        for (std::size_t j = i + 1; j < fits->size() && !merged; ++j) {
+          const EmplLine& a = (*fits)[i].line;
+          const EmplLine& b = (*fits)[j].line;
+          const double dang = std::asin(std::min(1.0, std::fabs(a.normal.x() * b.normal.y() - a.normal.y() * b.normal.x())));
+          const double sig = std::sqrt(std::max(0.0, a.covariance(0, 0)) + std::max(0.0, b.covariance(0, 0)));
+          if (dang > std::max(eo.merge_angle_deg * kDetPi / 180.0, 4.0 * sig)) {
+            continue;
+          }
+          if (std::fabs(a.SignedDistance(b.p1)) > eo.merge_offset_px ||
+              std::fabs(a.SignedDistance(b.p2)) > eo.merge_offset_px ||
+              std::fabs(b.SignedDistance(a.p1)) > eo.merge_offset_px ||
+              std::fabs(b.SignedDistance(a.p2)) > eo.merge_offset_px) {
+            continue;
+          }
+          const EmplLine& longer = a.length_px >= b.length_px ? a : b;
+          const Vec2d foot = longer.normal * longer.offset, dir = LineDirection(longer.normal);
+          double ta0 = dir.dot(a.p1 - foot), ta1 = dir.dot(a.p2 - foot);
+          double tb0 = dir.dot(b.p1 - foot), tb1 = dir.dot(b.p2 - foot);
+          if (ta0 > ta1) std::swap(ta0, ta1);
+          if (tb0 > tb1) std::swap(tb0, tb1);
+          const double gap = std::max(tb0 - ta1, ta0 - tb1);
+          if (gap > options.hough.max_gap_px + 1.0) {
+            continue;
+          }
+          EmplRequest req;
+          req.segment.normal = longer.normal;
+          req.segment.offset = longer.offset;
+          req.segment.t0 = std::min(ta0, tb0);
+          req.segment.t1 = std::max(ta1, tb1);
+          std::vector<EmplFitResult> refit = fitter.Fit(req);
+          if (refit.size() == 1 && refit[0].line.length_px >= 0.9 * std::max(a.length_px, b.length_px)) {
+            (*fits)[i] = std::move(refit[0]);
+            fits->erase(fits->begin() + static_cast<std::ptrdiff_t>(j));
+            merged = true;
+          }
+        }
+      }
+      if (!merged) {
+        break;
+      }
+    }
+  }
+};
+
+FeatureDetector::FeatureDetector(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+FeatureDetector::FeatureDetector(FeatureDetector&&) noexcept = default;
+FeatureDetector& FeatureDetector::operator=(FeatureDetector&&) noexcept = default;
+FeatureDetector::~FeatureDetector() = default;
+
+const FeatureOptions& FeatureDetector::options() const { return impl_->options; }
+
+Result<FeatureDetector> FeatureDetector::Create(const FeatureOptions& options, const std::optional<CameraModel>& camera) {
+  IDI_RETURN_IF_ERROR(options.Check());
+  auto impl = std::make_unique<Impl>();
+  impl->options = options;
+  if (camera) {
+    if (camera->width < 16 || camera->height < 16) {
+      return InvalidArgument("camera image size " + std::to_string(camera->width) + " x " +
+                             std::to_string(camera->height) + " is too small");
+    }
+    for (double p : camera->params) {
+      if (!std::isfinite(p)) {
+        return InvalidArgument("camera parameters must be finite");
+      }
+    }
+    if (!(camera->fx() > 0 && camera->fy() > 0)) {
+      return InvalidArgument("camera focal lengths must be positive");
+    }
+    impl->camera = camera;
+    impl->geometry = PixelGeometry(*camera);
+  }
+  return FeatureDetector(std::move(impl));
+}
+
+Result<FeatureResult> FeatureDetector::Detect(const cv::Mat& image) {
+  Impl& m = *impl_;
+  const auto t_start = std::chrono::steady_clock::now();
+  FeatureResult result;
+  IDI_RETURN_IF_ERROR(ComputeGradients(image, m.options.edges.smoothing_sigma_px, &m.gradients));
+  if (m.camera && (image.cols != m.camera->width || image.rows != m.camera->height)) {
+    return InvalidArgument("image is " + std::to_string(image.cols) + " x " + std::to_string(image.rows) +
+                           " px but the camera model is " + std::to_string(m.camera->width) + " x " +
+                           std::to_string(m.camera->height));
+  }
+  result.width = image.cols;
+  result.height = image.rows;
+  result.noise_sigma = m.gradients.noise_sigma;
+  const auto t_grad = std::chrono::steady_clock::now();
+  DetectEdges(m.gradients, m.options.edges, &m.edges);
+  result.edge_pixels = static_cast<int>(m.edges.pixels.size());
+  const auto t_edges = std::chrono::steady_clock::now();
+  const std::vector<HoughSegment> segments = m.hough.Find(m.gradients, &m.edges, m.geometry, m.options.hough);
+  const auto t_hough = std::chrono::steady_clock::now();
+
+  EmplFitter fitter(m.gradients, m.geometry, m.edges, m.options);
+  std::vector<EmplFitResult> fits;
+  for (const HoughSegment& seg : segments) {
+    EmplRequest req;
+    req.segment = seg;
+    for (EmplFitResult& f : fitter.Fit(req)) {
+      fits.push_back(std::move(f));
+    }
+  }
+  m.MergeCollinear(fitter, &fits);
+  // Longest first: stable ids that favour the best-supported lines.
+  std::sort(fits.begin(), fits.end(),
+            [](const EmplFitResult& a, const EmplFitResult& b) { return a.line.length_px > b.line.length_px; });
+  for (EmplFitResult& f : fits) {
+    f.line.id = static_cast<int>(result.lines.size());
+    result.lines.push_back(std::move(f.line));
+  }
+  const auto t_empl = std::chrono::steady_clock::now();
+  result.points = FindIdiPoints(&result.lines, m.options.idi, image.cols, image.rows);
+  const auto t_points = std::chrono::steady_clock::now();
+  if (m.options.curves.enabled) {
+    result.curves = FindCurves(m.gradients, m.edges, m.geometry, result.lines, m.options.curves);
+    AddCurveLinePoints(m.options.idi, &result.curves, &result.lines, &result.points);
+  }
+  const auto t_end = std::chrono::steady_clock::now();
+  result.timing.gradient_ms = Ms(t_start, t_grad);
+  result.timing.edges_ms = Ms(t_grad, t_edges);
+  result.timing.hough_ms = Ms(t_edges, t_hough);
+  result.timing.empl_ms = Ms(t_hough, t_empl);
+  result.timing.points_ms = Ms(t_empl, t_points);
+  result.timing.curves_ms = Ms(t_points, t_end);
+  result.timing.total_ms = Ms(t_start, t_end);
+  return result;
+}
+
+Result<FeatureResult> DetectFeatures(const cv::Mat& image, const FeatureOptions& options,
+                                     const std::optional<CameraModel>& camera) {
+  IDI_ASSIGN_OR_RETURN(FeatureDetector detector, FeatureDetector::Create(options, camera));
+  return detector.Detect(image);
+}
+
+}  // namespace idi

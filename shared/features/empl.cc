@@ -1,0 +1,826 @@
+#include "shared/features/empl.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numeric>
+
+namespace idi {
+namespace {
+
+constexpr double kEmplPi = 3.14159265358979323846;
+
+// Normal CDF Phi(z) and density phi(z) by table with linear interpolation (error < 2e-6): the
+// photometric fit evaluates them for every pixel of every band several times per frame.
+class NormalTable {
+ public:
+  static constexpr double kRange = 8.0;
+  static constexpr int kPerUnit = 128;
+  static constexpr int kSize = static_cast<int>(2 * kRange * kPerUnit) + 2;
+
+  NormalTable() {
+    for (int i = 0; i < kSize; ++i) {
+      const double z = -kRange + static_cast<double>(i) / kPerUnit;
+      cdf_[static_cast<std::size_t>(i)] = 0.5 * std::erfc(-z / std::sqrt(2.0));
+      pdf_[static_cast<std::size_t>(i)] = std::exp(-0.5 * z * z) / std::sqrt(2.0 * kEmplPi);
+    }
+  }
+  void Eval(double z, double* cdf, double* pdf) const {
+    if (z <= -kRange) {
+      *cdf = 0;
+      *pdf = 0;
+      return;
+    }
+    if (z >= kRange) {
+      *cdf = 1;
+      *pdf = 0;
+      return;
+    }
+    const double f = (z + kRange) * kPerUnit;
+    const int i = static_cast<int>(f);
+    const double a = f - i;
+    const std::size_t k = static_cast<std::size_t>(i);
+    *cdf = cdf_[k] + a * (cdf_[k + 1] - cdf_[k]);
+    *pdf = pdf_[k] + a * (pdf_[k + 1] - pdf_[k]);
+  }
+
+ private:
+  std::array<double, kSize> cdf_{};
+  std::array<double, kSize> pdf_{};
+};
+
+const NormalTable& Normal() {
+  static const NormalTable table;
+  return table;
+}
+
+// Angle difference wrapped to (-pi/2, pi/2] (lines are undirected).
+double WrapHalfPi(double a) {
+  a = std::fmod(a, kEmplPi);
+  if (a > 0.5 * kEmplPi) {
+    a -= kEmplPi;
+  } else if (a <= -0.5 * kEmplPi) {
+    a += kEmplPi;
+  }
+  return a;
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) {
+    return 0;
+  }
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+}  // namespace
+
+struct EmplFitter::Station {
+  double t = 0;
+  int major = 0;
+  int minor_base = 0;  // rounded line position on the minor axis (pixel)
+  bool horizontal = true;
+  bool has_peak = false;
+  bool valid = false;
+  bool outlier = false;
+  Vec2d point = Vec2d::Zero();  // sub-pixel edge point, fit coordinates
+  double strength = 0;          // |gradient along the normal| at the peak
+  double band_mean = 0;         // mean gradient magnitude over the band (eq. 7.29)
+  double grad_angle = 0;        // undirected gradient angle at the peak, [0, pi)
+  int sign = 0;                 // contrast sign relative to the normal
+  double width2 = 0;            // squared width of the gradient profile (Gaussian fit), 0 if unknown
+  double tangential = 0;        // largest gradient component along the line within the band
+};
+
+double ExtensionLength(const EmplOptions& o, double length_px) {
+  return std::clamp(o.extension_fraction * length_px, o.min_extension_px, o.max_extension_px);
+}
+
+void SetLineGeometry(double theta, double e, const Vec2d& centre, const Eigen::Matrix2d& cov_theta_e, double t0,
+                     double t1, const EmplOptions& options, EmplFitResult* result) {
+  (void)t0;
+  (void)t1;
+  EmplLine& line = result->line;
+  Vec2d n(std::cos(theta), std::sin(theta));
+  double d = n.dot(centre) + e;
+  Eigen::Matrix2d j;
+  j << 1, 0, Vec2d(-std::sin(theta), std::cos(theta)).dot(centre), 1;
+  Eigen::Matrix2d cov = j * cov_theta_e * j.transpose();
+  // Normalise the angle to [0, pi).
+  double angle = std::atan2(n.y(), n.x());
+  if (angle < 0 || angle >= kEmplPi) {
+    n = -n;
+    d = -d;
+    cov(0, 1) = -cov(0, 1);
+    cov(1, 0) = -cov(1, 0);
+  }
+  line.normal = n;
+  line.offset = d;
+  line.covariance = cov;
+  // Ends: the confirmed extent projected onto the final line.
+  const Vec2d foot = n * d, dir = LineDirection(n);
+  const Vec2d a = foot + dir * dir.dot(line.p1 - foot);
+  const Vec2d b = foot + dir * dir.dot(line.p2 - foot);
+  line.p1 = a;
+  line.p2 = b;
+  line.length_px = (b - a).norm();
+  const Vec2d u = line.length_px > 0 ? Vec2d((b - a) / line.length_px) : dir;
+  const double ext = ExtensionLength(options, line.length_px);
+  line.extension1 = a - ext * u;
+  line.extension2 = b + ext * u;
+  result->t0 = dir.dot(a - foot);
+  result->t1 = dir.dot(b - foot);
+  if (result->t0 > result->t1) {
+    std::swap(result->t0, result->t1);
+  }
+}
+
+EmplFitter::EmplFitter(const GradientImages& g, const PixelGeometry& geometry, const EdgeMap& edges,
+                       const FeatureOptions& options)
+    : g_(g),
+      geometry_(geometry),
+      edges_(edges),
+      options_(options),
+      cos_tol_(std::cos(options.empl.max_angle_error_deg * kEmplPi / 180.0)) {}
+
+void EmplFitter::Scan(const Vec2d& normal, double offset, double t_lo, double t_hi, std::vector<Station>* out) const {
+  out->clear();
+  const int w = g_.width(), h = g_.height();
+  const int delta = std::max(1, static_cast<int>(std::ceil(options_.empl.band_halfwidth_px)));
+  const Vec2d dir = LineDirection(normal);
+  const Vec2d foot = normal * offset;
+  const bool ident = geometry_.identity();
+  const double step = ident ? 0.5 : 0.35;
+  int last_major = std::numeric_limits<int>::min();
+  bool last_horizontal = true;
+  std::array<double, 64> gn{}, gm{};
+  for (double t = t_lo; t <= t_hi; t += step) {
+    const Vec2d q = geometry_.ToPixel(foot + t * dir);
+    Vec2d dir_px = dir;
+    if (!ident) {
+      dir_px = (geometry_.ToPixel(foot + (t + 0.5) * dir) - geometry_.ToPixel(foot + (t - 0.5) * dir)).normalized();
+    }
+    const bool horizontal = std::fabs(dir_px.x()) >= std::fabs(dir_px.y());
+    const double qmaj = horizontal ? q.x() : q.y();
+    const int major = static_cast<int>(std::lround(qmaj));
+    if (major == last_major && horizontal == last_horizontal) {
+      continue;
+    }
+    last_major = major;
+    last_horizontal = horizontal;
+    const double dmaj = horizontal ? dir_px.x() : dir_px.y();
+    const double dmin = horizontal ? dir_px.y() : dir_px.x();
+    const double minor = (horizontal ? q.y() : q.x()) + (major - qmaj) * dmin / dmaj;
+    const int base = static_cast<int>(std::lround(minor));
+    const int major_size = horizontal ? w : h, minor_size = horizontal ? h : w;
+    if (major < 0 || major >= major_size || base - delta - 1 < 0 || base + delta + 1 >= minor_size) {
+      continue;
+    }
+    Station s;
+    s.t = t + (major - qmaj) / dmaj;
+    s.major = major;
+    s.minor_base = base;
+    s.horizontal = horizontal;
+    const Vec2d n_px(dir_px.y(), -dir_px.x());
+    double best = 0, mean = 0, tang = 0;
+    int best_k = 0;
+    for (int k = -delta - 1; k <= delta + 1; ++k) {
+      const int px = horizontal ? major : base + k;
+      const int py = horizontal ? base + k : major;
+      const float gxv = g_.gx.at<float>(py, px), gyv = g_.gy.at<float>(py, px);
+      const double v = gxv * n_px.x() + gyv * n_px.y();
+      const double m = std::sqrt(static_cast<double>(g_.mag2.at<float>(py, px)));
+      const std::size_t i = static_cast<std::size_t>(k + delta + 1);
+      gn[i] = v;
+      gm[i] = m;
+      if (k >= -delta && k <= delta) {
+        mean += m;
+        tang = std::max(tang, std::fabs(gxv * dir_px.x() + gyv * dir_px.y()));
+        if (std::fabs(v) > best && std::fabs(v) >= cos_tol_ * m) {
+          best = std::fabs(v);
+          best_k = k;
+        }
+      }
+    }
+    // Per unit of perpendicular band width: a column crosses an oblique edge over a longer stretch.
+    s.band_mean = mean / (2 * delta + 1) * std::fabs(horizontal ? n_px.y() : n_px.x());
+    s.tangential = tang;
+    if (best > 0) {
+      const std::size_t i = static_cast<std::size_t>(best_k + delta + 1);
+      const int sign = gn[i] > 0 ? 1 : -1;
+      const double vm = sign * gn[i - 1], v0 = sign * gn[i], vp = sign * gn[i + 1];
+      if (v0 >= vm && v0 >= vp) {
+        // Sub-pixel peak of the gradient profile: Gaussian (log-parabola) fit, exact for a Gaussian
+        // profile; a parabola where a neighbour is not positive.
+        double off = 0, width2 = 0;
+        if (vm > 0 && vp > 0) {
+          const double a = std::log(vm), b = std::log(v0), c = std::log(vp);
+          const double den = a - 2 * b + c;
+          if (den < 0) {
+            off = 0.5 * (a - c) / den;
+            width2 = -1.0 / den;
+          }
+        } else {
+          const double den = vm - 2 * v0 + vp;
+          if (den < 0) {
+            off = 0.5 * (vm - vp) / den;
+          }
+        }
+        off = std::clamp(off, -0.5, 0.5);
+        const double minor_px = base + best_k + off;
+        const Vec2d p_px = horizontal ? Vec2d(major, minor_px) : Vec2d(minor_px, major);
+        s.point = geometry_.ToFit(p_px);
+        s.has_peak = true;
+        s.strength = v0;
+        s.sign = sign;
+        s.width2 = width2;
+        const int px = horizontal ? major : base + best_k;
+        const int py = horizontal ? base + best_k : major;
+        double ang = std::atan2(static_cast<double>(g_.gy.at<float>(py, px)), static_cast<double>(g_.gx.at<float>(py, px)));
+        if (ang < 0) {
+          ang += kEmplPi;
+        }
+        if (ang >= kEmplPi) {
+          ang -= kEmplPi;
+        }
+        s.grad_angle = ang;
+      }
+    }
+    out->push_back(s);
+  }
+}
+
+namespace {
+
+// Weighted fit of eq. 7.26 about `centre`: minimises sum w ((n(theta)·(p-c) - e)^2 + lambda
+// (theta - alpha)^2) by Gauss-Newton from the total least squares solution; lambda balances the
+// orientational against the positional error by their observed variances.
+struct GradientFit {
+  double theta = 0, e = 0;
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+  double rms = 0;
+};
+
+bool FitEq726(const std::vector<Vec2d>& p, const std::vector<double>& w, const std::vector<double>& alpha,
+              const Vec2d& centre, double theta_hint, GradientFit* fit) {
+  const std::size_t n = p.size();
+  if (n < 3) {
+    return false;
+  }
+  Vec2d normal;
+  double offset;
+  if (!FitLineTls(p, &w, &normal, &offset)) {
+    return false;
+  }
+  double theta = std::atan2(normal.y(), normal.x());
+  // Keep the orientation close to the hint so that the sign of e stays meaningful.
+  if (std::cos(theta - theta_hint) < 0) {
+    theta += kEmplPi;
+    normal = -normal;
+    offset = -offset;
+  }
+  double e = offset - normal.dot(centre);
+  // Variances for lambda.
+  double sw = 0, sp = 0, sa = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec2d nn(std::cos(theta), std::sin(theta));
+    const double r = nn.dot(p[i] - centre) - e;
+    const double ra = WrapHalfPi(theta - alpha[i]);
+    sw += w[i];
+    sp += w[i] * r * r;
+    sa += w[i] * ra * ra;
+  }
+  const double lambda = sa > 0 ? std::min(1e4, sp / sa) : 0.0;
+  Eigen::Matrix2d hess;
+  double rss = 0;
+  for (int iter = 0; iter < 3; ++iter) {
+    hess.setZero();
+    Eigen::Vector2d grad = Eigen::Vector2d::Zero();
+    const Vec2d nn(std::cos(theta), std::sin(theta)), nd(-std::sin(theta), std::cos(theta));
+    rss = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec2d q = p[i] - centre;
+      const double r = nn.dot(q) - e;
+      const Eigen::Vector2d j(nd.dot(q), -1.0);
+      const double ra = WrapHalfPi(theta - alpha[i]);
+      hess += w[i] * (j * j.transpose());
+      hess(0, 0) += w[i] * lambda;
+      grad += w[i] * (j * r);
+      grad(0) += w[i] * lambda * ra;
+      rss += w[i] * (r * r + lambda * ra * ra);
+    }
+    const Eigen::Vector2d step = hess.ldlt().solve(-grad);
+    if (!step.allFinite()) {
+      return false;
+    }
+    theta += step(0);
+    e += step(1);
+    if (step.norm() < 1e-9) {
+      break;
+    }
+  }
+  double sr = 0;
+  const Vec2d nn(std::cos(theta), std::sin(theta));
+  for (std::size_t i = 0; i < n; ++i) {
+    const double r = nn.dot(p[i] - centre) - e;
+    sr += r * r;
+  }
+  fit->theta = theta;
+  fit->e = e;
+  fit->rms = std::sqrt(sr / static_cast<double>(n));
+  fit->cov = hess.inverse() * (rss / std::max(1.0, static_cast<double>(n) - 2.0));
+  (void)sw;
+  return fit->cov.allFinite();
+}
+
+}  // namespace
+
+std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
+  const EmplOptions& eo = options_.empl;
+  const HoughOptions& ho = options_.hough;
+  Vec2d normal = request.segment.normal;
+  double offset = request.segment.offset;
+  double ta = std::max(request.segment.t0, request.t_limit_lo);
+  double tb = std::min(request.segment.t1, request.t_limit_hi);
+  if (tb - ta < 2) {
+    return {};
+  }
+  const double gap = ho.max_gap_px + 1.0;
+  std::vector<Station> st;
+  std::vector<Vec2d> pts;
+  std::vector<double> wts, alphas;
+  std::vector<std::size_t> idx;
+  double floor = -1;
+  GradientFit fit;
+  Vec2d centre = Vec2d::Zero();
+  std::size_t run_begin = 0, run_end = 0;
+  const int window = std::max(1, static_cast<int>(std::lround(eo.threshold_window_px)));
+  for (int iter = 0; iter < eo.max_iterations; ++iter) {
+    double lo = std::max(ta - gap - 2, request.t_limit_lo);
+    double hi = std::min(tb + gap + 2, request.t_limit_hi);
+    // Scan, growing the range while the edge evidence reaches its ends.
+    for (int grow = 0; grow < 40; ++grow) {
+      Scan(normal, offset, lo, hi, &st);
+      if (st.empty()) {
+        return {};
+      }
+      if (floor < 0) {
+        std::vector<double> s;
+        for (const Station& x : st) {
+          if (x.has_peak && x.t >= ta && x.t <= tb) {
+            s.push_back(x.strength);
+          }
+        }
+        floor = std::max(0.3 * Median(s), edges_.low_threshold);
+      }
+      // Adaptive local threshold (eq. 7.29): alpha times the mean magnitude within +-epsilon.
+      const std::size_t ns = st.size();
+      std::vector<double> prefix(ns + 1, 0.0);
+      for (std::size_t i = 0; i < ns; ++i) {
+        prefix[i + 1] = prefix[i] + st[i].band_mean;
+      }
+      for (std::size_t i = 0; i < ns; ++i) {
+        const std::size_t a = i >= static_cast<std::size_t>(window) ? i - static_cast<std::size_t>(window) : 0;
+        const std::size_t b = std::min(ns, i + static_cast<std::size_t>(window) + 1);
+        const double local_mean = (prefix[b] - prefix[a]) / static_cast<double>(b - a);
+        st[i].valid = st[i].has_peak && st[i].strength >= floor && st[i].strength >= eo.threshold_alpha * local_mean;
+      }
+      // Grow when valid stations come within a gap of a scan end that is not a hard limit.
+      bool grew = false;
+      const auto first_valid = std::find_if(st.begin(), st.end(), [](const Station& x) { return x.valid; });
+      const auto last_valid = std::find_if(st.rbegin(), st.rend(), [](const Station& x) { return x.valid; });
+      if (first_valid == st.end()) {
+        return {};
+      }
+      if (first_valid->t - st.front().t < gap && lo > request.t_limit_lo && st.front().t - lo < 2) {
+        lo = std::max(lo - 48, request.t_limit_lo);
+        grew = true;
+      }
+      if (st.back().t - last_valid->t < gap && hi < request.t_limit_hi && hi - st.back().t < 2) {
+        hi = std::min(hi + 48, request.t_limit_hi);
+        grew = true;
+      }
+      if (!grew) {
+        break;
+      }
+    }
+    // Runs of valid stations; keep the one overlapping the requested stretch most.
+    std::size_t best_b = 0, best_e = 0;
+    double best_overlap = -1e18;
+    for (std::size_t i = 0; i < st.size();) {
+      if (!st[i].valid) {
+        ++i;
+        continue;
+      }
+      std::size_t j = i, last = i;
+      while (j < st.size() && (!st[j].valid || st[j].t - st[last].t <= gap)) {
+        if (st[j].valid) {
+          last = j;
+        }
+        ++j;
+      }
+      const double overlap = std::min(tb, st[last].t) - std::max(ta, st[i].t);
+      if (overlap > best_overlap) {
+        best_overlap = overlap;
+        best_b = i;
+        best_e = last + 1;
+      }
+      i = last + 1;
+    }
+    if (best_e <= best_b || st[best_e - 1].t - st[best_b].t + 1 < ho.min_length_px) {
+      return {};
+    }
+    run_begin = best_b;
+    run_end = best_e;
+    // Fit eq. 7.26 with outlier rejection.
+    for (int pass = 0; pass < 2; ++pass) {
+      pts.clear();
+      wts.clear();
+      alphas.clear();
+      idx.clear();
+      for (std::size_t i = run_begin; i < run_end; ++i) {
+        if (st[i].valid && !st[i].outlier) {
+          pts.push_back(st[i].point);
+          wts.push_back(st[i].strength);
+          alphas.push_back(st[i].grad_angle);
+          idx.push_back(i);
+        }
+      }
+      if (pts.size() < 3) {
+        return {};
+      }
+      double sw = 0;
+      centre.setZero();
+      for (std::size_t i = 0; i < pts.size(); ++i) {
+        centre += wts[i] * pts[i];
+        sw += wts[i];
+      }
+      centre /= sw;
+      if (!FitEq726(pts, wts, alphas, centre, std::atan2(normal.y(), normal.x()), &fit)) {
+        return {};
+      }
+      const Vec2d nn(std::cos(fit.theta), std::sin(fit.theta));
+      std::vector<double> absr;
+      for (const Vec2d& q : pts) {
+        absr.push_back(std::fabs(nn.dot(q - centre) - fit.e));
+      }
+      const double robust = std::max(0.05, 1.4826 * Median(absr));
+      bool dropped = false;
+      for (std::size_t k = 0; k < pts.size(); ++k) {
+        if (absr[k] > eo.outlier_sigmas * robust) {
+          st[idx[k]].outlier = true;
+          dropped = true;
+        }
+      }
+      if (!dropped) {
+        break;
+      }
+    }
+    const Vec2d new_normal(std::cos(fit.theta), std::sin(fit.theta));
+    const double new_offset = new_normal.dot(centre) + fit.e;
+    const double change = std::fabs(WrapHalfPi(std::atan2(new_normal.y(), new_normal.x()) -
+                                               std::atan2(normal.y(), normal.x()))) *
+                              100.0 +
+                          std::fabs(new_offset - offset * new_normal.dot(normal));
+    // Extent in the new parameterisation.
+    const Vec2d foot = new_normal * new_offset, dir = LineDirection(new_normal);
+    const double sgn = new_normal.dot(normal) >= 0 ? 1.0 : -1.0;
+    const Vec2d pa = st[run_begin].point, pb = st[run_end - 1].point;
+    normal = sgn * new_normal;
+    offset = sgn * new_offset;
+    const Vec2d dir_kept = LineDirection(normal), foot_kept = normal * offset;
+    ta = dir_kept.dot(pa - foot_kept);
+    tb = dir_kept.dot(pb - foot_kept);
+    if (ta > tb) {
+      std::swap(ta, tb);
+    }
+    (void)foot;
+    (void)dir;
+    if (change < 1e-3 && iter > 0) {
+      break;
+    }
+    for (Station& s : st) {
+      s.outlier = false;
+    }
+  }
+
+  // False merge (§8.8.2 "false augmented EMPL segment"): two edges that nearly line up. Test every
+  // breakpoint with a two-piece total least squares fit from prefix sums of the weighted moments.
+  if (request.split_depth < 2 && pts.size() >= 2 * static_cast<std::size_t>(ho.min_length_px)) {
+    const std::size_t n = pts.size();
+    std::vector<std::array<double, 6>> pre(n + 1, {0, 0, 0, 0, 0, 0});
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec2d q = pts[i] - centre;
+      const double w = wts[i];
+      pre[i + 1] = {pre[i][0] + w,
+                    pre[i][1] + w * q.x(),
+                    pre[i][2] + w * q.y(),
+                    pre[i][3] + w * q.x() * q.x(),
+                    pre[i][4] + w * q.x() * q.y(),
+                    pre[i][5] + w * q.y() * q.y()};
+    }
+    auto tls = [&](std::size_t a, std::size_t b, double* angle) {
+      double m[6];
+      for (int k = 0; k < 6; ++k) {
+        m[k] = pre[b][static_cast<std::size_t>(k)] - pre[a][static_cast<std::size_t>(k)];
+      }
+      const double mx = m[1] / m[0], my = m[2] / m[0];
+      const double cxx = m[3] / m[0] - mx * mx, cxy = m[4] / m[0] - mx * my, cyy = m[5] / m[0] - my * my;
+      *angle = 0.5 * std::atan2(2 * cxy, cxx - cyy);
+      const double tr = cxx + cyy, det = cxx * cyy - cxy * cxy;
+      const double lmin = 0.5 * tr - std::sqrt(std::max(0.0, 0.25 * tr * tr - det));
+      return std::max(0.0, lmin) * m[0];
+    };
+    double a_all;
+    const double rss_all = tls(0, n, &a_all);
+    const std::size_t m = static_cast<std::size_t>(ho.min_length_px);
+    double best_rss = rss_all, best_dang = 0;
+    std::size_t best_k = 0;
+    for (std::size_t k = m; k + m <= n; ++k) {
+      double a1, a2;
+      const double rss = tls(0, k, &a1) + tls(k, n, &a2);
+      if (rss < best_rss) {
+        best_rss = rss;
+        best_k = k;
+        best_dang = std::fabs(WrapHalfPi(a1 - a2));
+      }
+    }
+    const double f = best_rss > 0 ? (rss_all - best_rss) / 2.0 / (best_rss / static_cast<double>(n - 4)) : 0.0;
+    if (best_k > 0 && best_dang > eo.split_angle_deg * kEmplPi / 180.0 && f > 50.0) {
+      const double t_split = 0.5 * (st[idx[best_k - 1]].t + st[idx[best_k]].t);
+      std::vector<EmplFitResult> out;
+      for (int side = 0; side < 2; ++side) {
+        EmplRequest child;
+        child.split_depth = request.split_depth + 1;
+        child.segment.normal = normal;
+        child.segment.offset = offset;
+        child.segment.t0 = side == 0 ? st[idx.front()].t : t_split + 1;
+        child.segment.t1 = side == 0 ? t_split - 1 : st[idx.back()].t;
+        child.t_limit_lo = side == 0 ? request.t_limit_lo : t_split + 0.5;
+        child.t_limit_hi = side == 0 ? t_split - 0.5 : request.t_limit_hi;
+        for (EmplFitResult& r : Fit(child)) {
+          out.push_back(std::move(r));
+        }
+      }
+      if (!out.empty()) {
+        return out;
+      }
+    }
+  }
+
+  EmplFitResult result;
+  result.line.p1 = st[run_begin].point;
+  result.line.p2 = st[run_end - 1].point;
+  result.line.fit_rms_px = fit.rms;
+  result.line.support = static_cast<int>(pts.size());
+  double contrast_sum = 0;
+  int pos = 0, neg = 0;
+  std::vector<double> widths;
+  for (std::size_t i : idx) {
+    contrast_sum += st[i].strength;
+    (st[i].sign > 0 ? pos : neg) += 1;
+    if (st[i].width2 > 0) {
+      widths.push_back(st[i].width2);
+    }
+  }
+  // Gradient-peak contrast: the peak of a blurred step's derivative is A / (sqrt(2 pi) sigma).
+  const double prof_sigma = widths.empty() ? 1.5 : std::sqrt(Median(widths));
+  result.line.contrast = contrast_sum / static_cast<double>(idx.size()) * std::sqrt(2 * kEmplPi) * prof_sigma;
+  result.line.alternating = std::min(pos, neg) >= static_cast<int>(ho.min_length_px / 2);
+  double theta = fit.theta, e = fit.e;
+  Eigen::Matrix2d cov = fit.cov;
+  if (eo.photometric_refinement) {
+    // Edge width without the smoothing and the central difference (variance 1/3 of the sampled
+    // derivative): the starting sigma of the blurred step.
+    const double s = g_.smoothing_sigma_px;
+    const double sigma_init = std::sqrt(std::max(0.09, prof_sigma * prof_sigma - s * s - 1.0 / 3.0));
+    if (PhotometricRefine(st, run_begin, run_end, ta, tb, centre, sigma_init, &theta, &e, &result)) {
+      cov = result.line.covariance;
+      result.photometric = true;
+    } else {
+      theta = fit.theta;
+      e = fit.e;
+    }
+  }
+  SetLineGeometry(theta, e, centre, cov, ta, tb, eo, &result);
+  // Station RMS against the final line.
+  double sr = 0;
+  for (const Vec2d& q : pts) {
+    const double r = result.line.SignedDistance(q);
+    sr += r * r;
+  }
+  result.line.fit_rms_px = std::sqrt(sr / static_cast<double>(pts.size()));
+  return {result};
+}
+
+bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t begin, std::size_t end, double t0,
+                                   double t1, const Vec2d& centre, double sigma_init, double* theta_io, double* e_io,
+                                   EmplFitResult* result) const {
+  const EmplOptions& eo = options_.empl;
+  double theta = *theta_io, e = *e_io, sigma = std::clamp(sigma_init, 0.3, 6.0);
+  const int half = std::clamp(static_cast<int>(std::ceil(2.5 * sigma + 1.5)), 3, 9);
+  const int w = g_.width(), h = g_.height();
+  // Pixels of the clean stations, grouped into chunks with their own contrast and background.
+  struct Px {
+    float ux, uy, value;
+    int chunk;
+    float weight;
+  };
+  std::vector<Px> px;
+  px.reserve((end - begin) * static_cast<std::size_t>(2 * half + 1));
+  std::vector<int> chunk_sign;
+  int chunk = -1, in_chunk = 0, last_sign = 0;
+  double last_t = -1e18;
+  const int chunk_len = std::max(4, static_cast<int>(eo.chunk_length_px));
+  int stations_used = 0;
+  for (std::size_t i = begin; i < end; ++i) {
+    const Station& s = st[i];
+    if (!s.valid || s.outlier || s.t < t0 + eo.end_margin_px || s.t > t1 - eo.end_margin_px) {
+      continue;
+    }
+    // Another edge crossing the band (corners, junctions, clutter) breaks the one-step model.
+    if (s.tangential > 0.5 * s.strength) {
+      continue;
+    }
+    if (s.minor_base - half < 0 || s.minor_base + half >= (s.horizontal ? h : w)) {
+      continue;
+    }
+    if (chunk < 0 || s.sign != last_sign || in_chunk >= chunk_len || s.t - last_t > 3.0) {
+      ++chunk;
+      chunk_sign.push_back(s.sign);
+      in_chunk = 0;
+    }
+    ++in_chunk;
+    ++stations_used;
+    last_sign = s.sign;
+    last_t = s.t;
+    for (int k = -half; k <= half; ++k) {
+      const int x = s.horizontal ? s.major : s.minor_base + k;
+      const int y = s.horizontal ? s.minor_base + k : s.major;
+      const Vec2d u = geometry_.ToFit(x, y) - centre;
+      px.push_back({static_cast<float>(u.x()), static_cast<float>(u.y()), g_.raw.at<float>(y, x), chunk, 1.0f});
+    }
+  }
+  const int n_chunks = chunk + 1;
+  if (stations_used < std::max(8, static_cast<int>(options_.hough.min_length_px / 2)) || n_chunks < 1) {
+    return false;
+  }
+  std::vector<double> a(static_cast<std::size_t>(n_chunks), 0.0), b(static_cast<std::size_t>(n_chunks), 0.0);
+  const NormalTable& normal = Normal();
+  // Contrast and background of each chunk for the current geometry: 2x2 linear least squares.
+  auto solve_linear = [&]() {
+    std::vector<Eigen::Matrix2d> hh(static_cast<std::size_t>(n_chunks), Eigen::Matrix2d::Zero());
+    std::vector<Eigen::Vector2d> rr(static_cast<std::size_t>(n_chunks), Eigen::Vector2d::Zero());
+    const double c = std::cos(theta), s = std::sin(theta);
+    for (const Px& p : px) {
+      double cdf, pdf;
+      normal.Eval((c * p.ux + s * p.uy - e) / sigma, &cdf, &pdf);
+      const std::size_t k = static_cast<std::size_t>(p.chunk);
+      hh[k] += Eigen::Matrix2d{{cdf * cdf, cdf}, {cdf, 1.0}};
+      rr[k] += Eigen::Vector2d(cdf * p.value, p.value);
+    }
+    for (std::size_t k = 0; k < hh.size(); ++k) {
+      const Eigen::Vector2d sol = hh[k].ldlt().solve(rr[k]);
+      a[k] = sol(0);
+      b[k] = sol(1);
+    }
+  };
+  solve_linear();
+  // Gauss-Newton with the chunk parameters eliminated (Schur complement).
+  double mu = 1e-6;
+  Eigen::Matrix3d s_mat = Eigen::Matrix3d::Identity();
+  double rss = 0;
+  auto evaluate = [&](double th, double ee, double sg, const std::vector<double>& aa, const std::vector<double>& bb) {
+    const double c = std::cos(th), s = std::sin(th);
+    double sum = 0;
+    for (const Px& p : px) {
+      double cdf, pdf;
+      normal.Eval((c * p.ux + s * p.uy - ee) / sg, &cdf, &pdf);
+      const std::size_t k = static_cast<std::size_t>(p.chunk);
+      const double r = p.value - (bb[k] + aa[k] * cdf);
+      sum += p.weight * r * r;
+    }
+    return sum;
+  };
+  rss = evaluate(theta, e, sigma, a, b);
+  bool converged = false;
+  for (int iter = 0; iter < 12; ++iter) {
+    Eigen::Matrix3d hgg = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d bg = Eigen::Vector3d::Zero();
+    std::vector<Eigen::Matrix2d> hcc(static_cast<std::size_t>(n_chunks), Eigen::Matrix2d::Zero());
+    std::vector<Eigen::Matrix<double, 2, 3>> hcg(static_cast<std::size_t>(n_chunks), Eigen::Matrix<double, 2, 3>::Zero());
+    std::vector<Eigen::Vector2d> bc(static_cast<std::size_t>(n_chunks), Eigen::Vector2d::Zero());
+    const double c = std::cos(theta), s = std::sin(theta);
+    for (const Px& p : px) {
+      const double dist = c * p.ux + s * p.uy - e;
+      const double z = dist / sigma;
+      double cdf, pdf;
+      normal.Eval(z, &cdf, &pdf);
+      const std::size_t k = static_cast<std::size_t>(p.chunk);
+      const double r = p.value - (b[k] + a[k] * cdf);
+      const double ap = a[k] * pdf / sigma;
+      // d model / d(theta, e, sigma), d model / d(A, B)
+      const Eigen::Vector3d jg(ap * (-s * p.ux + c * p.uy), -ap, -ap * z);
+      const Eigen::Vector2d jc(cdf, 1.0);
+      const double wgt = p.weight;
+      hgg += wgt * jg * jg.transpose();
+      bg += wgt * r * jg;
+      hcc[k] += wgt * jc * jc.transpose();
+      hcg[k] += wgt * jc * jg.transpose();
+      bc[k] += wgt * r * jc;
+    }
+    Eigen::Matrix3d schur = hgg;
+    Eigen::Vector3d rhs = bg;
+    std::vector<Eigen::Matrix2d> hcc_inv(static_cast<std::size_t>(n_chunks));
+    for (std::size_t k = 0; k < hcc.size(); ++k) {
+      hcc[k].diagonal() *= 1.0 + 1e-12;
+      hcc_inv[k] = hcc[k].inverse();
+      schur -= hcg[k].transpose() * hcc_inv[k] * hcg[k];
+      rhs -= hcg[k].transpose() * hcc_inv[k] * bc[k];
+    }
+    s_mat = schur;
+    bool accepted = false;
+    for (int tries = 0; tries < 6 && !accepted; ++tries) {
+      Eigen::Matrix3d damped = schur;
+      damped.diagonal() *= 1.0 + mu;
+      const Eigen::Vector3d dg = damped.ldlt().solve(rhs);
+      if (!dg.allFinite()) {
+        return false;
+      }
+      std::vector<double> a2 = a, b2 = b;
+      for (std::size_t k = 0; k < hcc.size(); ++k) {
+        const Eigen::Vector2d dc = hcc_inv[k] * (bc[k] - hcg[k] * dg);
+        a2[k] += dc(0);
+        b2[k] += dc(1);
+      }
+      const double th2 = theta + dg(0), e2 = e + dg(1), sg2 = sigma + dg(2);
+      if (sg2 < 0.1 || sg2 > 12.0) {
+        mu *= 10;
+        continue;
+      }
+      const double rss2 = evaluate(th2, e2, sg2, a2, b2);
+      if (rss2 <= rss * (1 + 1e-12)) {
+        accepted = true;
+        converged = std::fabs(dg(1)) < 1e-5 && std::fabs(dg(0)) < 1e-7 && std::fabs(dg(2)) < 1e-4;
+        theta = th2;
+        e = e2;
+        sigma = sg2;
+        a = a2;
+        b = b2;
+        rss = rss2;
+        mu = std::max(1e-9, mu * 0.1);
+      } else {
+        mu *= 10;
+      }
+    }
+    if (!accepted) {
+      converged = true;  // no further decrease: at the minimum to working precision
+    }
+    // Once, after the first steps: drop pixels far off the model (specks, clutter).
+    if (iter == 1) {
+      const double sig = std::sqrt(rss / static_cast<double>(px.size()));
+      const double cc = std::cos(theta), ss = std::sin(theta);
+      for (Px& p : px) {
+        double cdf, pdf;
+        normal.Eval((cc * p.ux + ss * p.uy - e) / sigma, &cdf, &pdf);
+        const std::size_t k = static_cast<std::size_t>(p.chunk);
+        if (std::fabs(p.value - (b[k] + a[k] * cdf)) > 5.0 * sig) {
+          p.weight = 0.0f;
+        }
+      }
+      rss = evaluate(theta, e, sigma, a, b);
+    }
+    if (converged && iter >= 2) {
+      break;
+    }
+  }
+  if (std::fabs(e - *e_io) > 1.5 || std::fabs(WrapHalfPi(theta - *theta_io)) > 0.05) {
+    return false;
+  }
+  double used = 0;
+  for (const Px& p : px) {
+    used += p.weight > 0 ? 1.0 : 0.0;
+  }
+  const double dof = std::max(1.0, used - 3.0 - 2.0 * n_chunks);
+  const Eigen::Matrix3d cov3 = s_mat.inverse() * (rss / dof);
+  if (!cov3.allFinite() || cov3(0, 0) <= 0 || cov3(1, 1) <= 0) {
+    return false;
+  }
+  *theta_io = theta;
+  *e_io = e;
+  result->line.covariance = cov3.topLeftCorner<2, 2>();
+  result->line.blur_sigma_px = sigma;
+  double asum = 0;
+  int pos = 0, neg = 0;
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    asum += std::fabs(a[k]);
+    (a[k] > 0 ? pos : neg) += 1;
+  }
+  result->line.contrast = asum / static_cast<double>(a.size());
+  result->line.alternating = pos > 0 && neg > 0;
+  return true;
+}
+
+}  // namespace idi

@@ -1,0 +1,137 @@
+// EMPL lines on closed-form edges: exact without noise at any angle and sub-pixel phase, at the
+// Cramér-Rao bound with noise, with a covariance that predicts the error; alternating contrast along
+// a chessboard line makes one line.
+#include "shared/features/empl.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "shared/features/analytic_images.h"
+
+namespace idi {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Signed offset error of `line` against the true (normal, offset) at point `at`, and angle error.
+void LineErrors(const EmplLine& line, const Vec2d& n, double d, const Vec2d& at, double* offset_err, double* angle_err) {
+  const Vec2d foot_true = at - n * (n.dot(at) - d);  // point of the true line near `at`
+  *offset_err = line.SignedDistance(foot_true) * (line.normal.dot(n) > 0 ? 1 : -1);
+  double da = std::atan2(line.normal.y(), line.normal.x()) - std::atan2(n.y(), n.x());
+  da = std::remainder(da, kPi);
+  *angle_err = da;
+}
+
+TEST(EmplTest, NoiseFreeEdgesAreExactAtAnyAngleAndPhase) {
+  for (double deg : {0.0, 7.0, 30.0, 45.0, 61.0, 90.0, 112.0, 135.0, 171.0}) {
+    for (double phase : {0.0, 0.25, 0.5}) {
+      const Vec2d n(std::cos(deg * kPi / 180), std::sin(deg * kPi / 180));
+      const Vec2d c(48.0 + phase, 40.0 + phase);
+      const double d = n.dot(c);
+      const cv::Mat img = analytic::EdgeImage(96, 80, n, d, 60, 120, 1.0);
+      const auto r = DetectFeatures(img);
+      ASSERT_TRUE(r.ok());
+      ASSERT_EQ(r->lines.size(), 1u) << deg << " " << phase;
+      double oe, ae;
+      LineErrors(r->lines[0], n, d, c, &oe, &ae);
+      EXPECT_LT(std::fabs(oe), 0.003) << deg << " deg, phase " << phase;
+      EXPECT_LT(std::fabs(ae), 2e-4) << deg << " deg, phase " << phase;
+      EXPECT_NEAR(r->lines[0].contrast, 120, 2.0);
+      EXPECT_NEAR(r->lines[0].blur_sigma_px, std::sqrt(1.0 + 1.0 / 12), 0.08);
+    }
+  }
+}
+
+TEST(EmplTest, NoisyEdgeReachesTheBoundAndItsCovarianceIsHonest) {
+  const double contrast = 150, noise = 10, blur = 1.0;  // A / sigma_n = 15
+  const double deg = 17.0;
+  const Vec2d n(std::cos(deg * kPi / 180), std::sin(deg * kPi / 180));
+  const Vec2d c(64.3, 48.6);
+  const double d = n.dot(c);
+  const cv::Mat clean = analytic::EdgeImage(128, 96, n, d, 50, contrast, blur);
+  double sum2 = 0, sum = 0, pred = 0, len = 0;
+  const int trials = 24;
+  auto detector = FeatureDetector::Create(FeatureOptions{});
+  ASSERT_TRUE(detector.ok());
+  for (int t = 0; t < trials; ++t) {
+    const cv::Mat img = analytic::Quantize(clean, noise, 100 + static_cast<std::uint64_t>(t));
+    const auto r = detector->Detect(img);
+    ASSERT_TRUE(r.ok());
+    ASSERT_EQ(r->lines.size(), 1u);
+    const EmplLine& l = r->lines[0];
+    const Vec2d mid = 0.5 * (l.p1 + l.p2);
+    double oe, ae;
+    LineErrors(l, n, d, mid, &oe, &ae);
+    sum += oe;
+    sum2 += oe * oe;
+    // Predicted offset variance at the segment's middle from the line's covariance.
+    const Vec2d nd(-l.normal.y(), l.normal.x());
+    const Eigen::Vector2d j(nd.dot(mid), -1.0);
+    pred += j.dot(l.covariance * j);
+    len += l.length_px;
+  }
+  const double rms = std::sqrt(sum2 / trials);
+  const double bound = OffsetBoundPx(contrast, noise, blur, len / trials);
+  // 24 trials: the RMS is known to about +-15 %, hence the margins.
+  EXPECT_LT(rms, 1.6 * bound) << "rms " << rms << " bound " << bound;
+  EXPECT_LT(std::fabs(sum / trials), 3 * bound / std::sqrt(trials) + 0.005);
+  const double predicted = std::sqrt(pred / trials);
+  EXPECT_GT(predicted, 0.7 * bound);
+  EXPECT_LT(predicted, 1.5 * bound);
+}
+
+TEST(EmplTest, GradientOnlyFitIsUsableWhenThePhotometricStepIsOff) {
+  FeatureOptions o;
+  o.empl.photometric_refinement = false;
+  const Vec2d n(std::cos(0.3), std::sin(0.3));
+  const double d = n.dot(Vec2d(48.2, 40.7));
+  const auto r = DetectFeatures(analytic::EdgeImage(96, 80, n, d, 60, 120, 1.0), o);
+  ASSERT_TRUE(r.ok());
+  ASSERT_EQ(r->lines.size(), 1u);
+  double oe, ae;
+  LineErrors(r->lines[0], n, d, Vec2d(48.2, 40.7), &oe, &ae);
+  EXPECT_LT(std::fabs(oe), 0.03);
+  EXPECT_LT(r->lines[0].fit_rms_px, 0.05);
+  EXPECT_GT(r->lines[0].covariance(1, 1), 0);
+}
+
+TEST(EmplTest, ConfirmedEndsAndExtensions) {
+  // A vertical edge only in rows 20..69 (an L-corner's vertical side: quadrant x > 40, y > 20).
+  const cv::Mat img = analytic::CornerImage(96, 90, 40.0, 20.0, 40, 160, 1.0);
+  const auto r = DetectFeatures(img);
+  ASSERT_TRUE(r.ok());
+  const EmplLine* vertical = nullptr;
+  for (const EmplLine& l : r->lines) {
+    if (std::fabs(l.normal.x()) > 0.99) vertical = &l;
+  }
+  ASSERT_NE(vertical, nullptr);
+  const double top = std::min(vertical->p1.y(), vertical->p2.y());
+  const double bottom = std::max(vertical->p1.y(), vertical->p2.y());
+  EXPECT_NEAR(top, 20.0, 3.0);
+  EXPECT_GT(bottom, 85.0);
+  const double ext = (vertical->extension1 - vertical->p1).norm();
+  EXPECT_NEAR(ext, ExtensionLength(EmplOptions{}, vertical->length_px), 1e-9);
+  EXPECT_NEAR(vertical->Direction().norm(), 1.0, 1e-12);
+}
+
+TEST(EmplTest, ChessboardLinesWithAlternatingContrastAreOneLineEach) {
+  // 6 x 5 squares of 24 px: 7 vertical and 6 horizontal grid lines, inner ones alternate contrast.
+  const cv::Mat img = analytic::Quantize(
+      analytic::ChessboardImage(200, 170, 20.4, 22.7, 24.0, 6, 5, 40, 200, 120, 1.0), 2.0, 5);
+  const auto r = DetectFeatures(img);
+  ASSERT_TRUE(r.ok());
+  int vertical = 0, horizontal = 0, alternating = 0;
+  for (const EmplLine& l : r->lines) {
+    if (l.length_px < 100) continue;
+    if (std::fabs(l.normal.x()) > 0.999) ++vertical;
+    if (std::fabs(l.normal.y()) > 0.999) ++horizontal;
+    alternating += l.alternating ? 1 : 0;
+  }
+  EXPECT_EQ(vertical, 7);
+  EXPECT_EQ(horizontal, 6);
+  EXPECT_GE(alternating, 5 + 4);
+}
+
+}  // namespace
+}  // namespace idi

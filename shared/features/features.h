@@ -1,0 +1,248 @@
+// The vision front end (dissertation chapter 7): EMPL lines and IDI points from one grey image.
+//
+// Pipeline (FeatureDetector::Detect):
+//   1. gradients by derivative of Gaussian and Canny edges (§7.5-7.6.4);
+//   2. Hough transform in (r, theta) whose votes are restricted to the gradient direction (§7.7.1),
+//      peaks taken strongest first, segments extracted along each peak with a gap tolerance;
+//   3. EMPL refinement (§7.11, eqs. 7.26-7.30): sub-pixel edge points from the gradient profile of
+//      the pixels in a band around the segment that pass an adaptive local threshold and agree with
+//      the line's direction, weighted by gradient magnitude, fitted by minimising positional and
+//      orientational error; then a photometric refinement of the same line on the raw pixels (a
+//      blurred-step model, the estimator whose variance is the Cramér-Rao bound), which also gives
+//      the line's covariance; confirmed segment ends kept apart from unconfirmed extensions (§8.8.2);
+//      collinear pieces merged, kinked ones split;
+//   4. IDI points (§7.10): intersections of pairs of lines near their segments, three or more lines
+//      meeting near one place giving one point (§8.8.2 "non unique point"), with the topology and the
+//      covariance propagated from the line fits;
+//   5. curves (§7.9.1): active contours on the edges no line explains, and IDI points where a curve
+//      meets a line.
+//
+// Conventions: pixel coordinates with integer values at pixel centres, x right, y down
+// (shared/camera/pinhole.h). Lines are undirected: a line is the set of x with normal·x = offset,
+// unit normal, angle = atan2(normal.y, normal.x) in [0, pi). When a camera with distortion is given,
+// all geometry (lines, points, segment ends) is in undistorted pixel coordinates (same K).
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "shared/camera/pinhole.h"
+#include "shared/util/status.h"
+
+namespace idi {
+
+// Derivative-of-Gaussian gradients and Canny edges (§7.5-7.6.4).
+struct EdgeOptions {
+  // Standard deviation of the Gaussian smoothing before differentiation (px).
+  double smoothing_sigma_px = 1.0;
+  // Hysteresis thresholds in multiples of the gradient noise estimated from the image (the median
+  // gradient magnitude of a Rayleigh-distributed noise field), with absolute floors in grey levels
+  // per pixel of an 8-bit image (scaled for 16-bit and float images).
+  double low_threshold_sigmas = 2.5;
+  double high_threshold_sigmas = 5.0;
+  double min_low_threshold = 0.8;
+  double min_high_threshold = 1.6;
+
+  Status Check() const;
+};
+
+// Hough transform with gradient-restricted votes and segment extraction (§7.7.1).
+struct HoughOptions {
+  double angle_step_deg = 1.0;
+  double offset_step_px = 1.0;
+  // Each edge pixel votes only for angles within this window of its gradient direction (the
+  // dissertation uses up to ±25°; the derivative-of-Gaussian direction is much better than that).
+  double vote_window_deg = 4.0;
+  // Segments along a peak: edge pixels within this distance of the peak line whose gradient agrees
+  // to within max_angle_error_deg, gaps up to max_gap_px, at least min_length_px long.
+  double band_px = 1.5;
+  double max_angle_error_deg = 20.0;
+  double max_gap_px = 6.0;
+  double min_length_px = 15.0;
+  // A run must have edge pixels on at least this fraction of its length.
+  double min_fill = 0.6;
+  int max_lines = 400;
+
+  Status Check() const;
+};
+
+// EMPL refinement of one line (§7.11, eqs. 7.26-7.30) and its segment bookkeeping (§8.8.2).
+struct EmplOptions {
+  // Half width delta of the band around the line searched for edge evidence (px).
+  double band_halfwidth_px = 3.0;
+  // Adaptive local threshold, eq. 7.29: a pixel counts when its gradient magnitude exceeds alpha
+  // times the mean magnitude over +-epsilon px along the line and +-delta px across it. (A clean
+  // step's peak is (2 delta + 1) / (sqrt(2 pi) sigma) times that mean: 1.9 for sigma 1.5.)
+  double threshold_alpha = 0.75;
+  double threshold_window_px = 10.0;
+  // T_theta of eq. 7.26: largest angle between a pixel's gradient and the line normal (deg).
+  double max_angle_error_deg = 20.0;
+  int max_iterations = 4;
+  // Edge points further than this many robust sigmas from the fit are dropped (outliers).
+  double outlier_sigmas = 3.5;
+  // Photometric refinement: a blurred step with its own contrast/background per chunk of the line
+  // (so alternating contrast along a chessboard line is fine) fitted to the raw pixels.
+  bool photometric_refinement = true;
+  double chunk_length_px = 24.0;
+  // Stations within this distance of a confirmed end are left out of the photometric fit (corners).
+  double end_margin_px = 2.0;
+  // Collinear pieces are merged when the angle differs by less than merge_angle_deg (or 4 sigma),
+  // each end lies within merge_offset_px of the other line, and the gap is below the Hough gap.
+  double merge_angle_deg = 1.0;
+  double merge_offset_px = 1.0;
+  // A line is split where a two-piece fit changes the direction by more than split_angle_deg and
+  // explains the points significantly better (a false merge of two edges that nearly line up).
+  double split_angle_deg = 1.5;
+  // Unconfirmed extension beyond each confirmed end (§8.8.2): fraction of the length, clamped.
+  double extension_fraction = 0.1;
+  double min_extension_px = 4.0;
+  double max_extension_px = 25.0;
+
+  Status Check() const;
+};
+
+// IDI points (§7.10, §8.8.2).
+struct IdiOptions {
+  // Lines meeting at less than this angle do not make a point (their intersection is ill-posed).
+  double min_angle_deg = 10.0;
+  // Intersections closer than this (px) are one point made by all their lines.
+  double merge_radius_px = 2.5;
+  // Margin outside the image within which a point is still kept (px).
+  double image_margin_px = 2.0;
+
+  Status Check() const;
+};
+
+// Active contours (§7.9.1) on edge chains that no line explains.
+struct CurveOptions {
+  bool enabled = true;
+  double min_length_px = 30.0;
+  double point_spacing_px = 4.0;
+  // Energy weights of the greedy snake: continuity, curvature, image (gradient magnitude).
+  double alpha = 0.5;
+  double beta = 0.5;
+  double gamma = 1.0;
+  int max_iterations = 30;
+  // A chain fitted by one line to within this RMS (px) is straight, not a curve.
+  double straight_rms_px = 0.6;
+
+  Status Check() const;
+};
+
+struct FeatureOptions {
+  EdgeOptions edges;
+  HoughOptions hough;
+  EmplOptions empl;
+  IdiOptions idi;
+  CurveOptions curves;
+
+  Status Check() const;
+};
+
+// An EMPL line: the fitted line, its confirmed segment and unconfirmed extensions.
+struct EmplLine {
+  int id = -1;
+  Eigen::Vector2d normal = Eigen::Vector2d::UnitY();  // unit, angle in [0, pi)
+  double offset = 0;                                  // normal·x = offset (px)
+  Eigen::Vector2d p1 = Eigen::Vector2d::Zero();       // confirmed segment ends on the line
+  Eigen::Vector2d p2 = Eigen::Vector2d::Zero();
+  Eigen::Vector2d extension1 = Eigen::Vector2d::Zero();  // end of the unconfirmed extension beyond p1
+  Eigen::Vector2d extension2 = Eigen::Vector2d::Zero();  // ... and beyond p2
+  double length_px = 0;                                  // |p2 - p1|
+  double fit_rms_px = 0;                                 // RMS distance of the edge points from the line
+  // Covariance of (angle_rad, offset_px) from the fit.
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();
+  double contrast = 0;           // mean |step| across the edge (grey levels)
+  double blur_sigma_px = 0;      // fitted edge width (PSF and pixel integration), 0 if not fitted
+  bool alternating = false;      // the contrast changes sign along the line (chessboard)
+  int support = 0;               // edge points used
+  std::vector<int> point_ids;    // IDI points on this line, ordered along p1 -> p2
+
+  double Angle() const;                       // atan2(normal.y, normal.x)
+  Eigen::Vector2d Direction() const;          // unit, from p1 towards p2
+  double SignedDistance(const Eigen::Vector2d& x) const { return normal.dot(x) - offset; }
+};
+
+// A curve found by an active contour: a polyline through the edge.
+struct Curve {
+  int id = -1;
+  std::vector<Eigen::Vector2d> points;
+  double fit_rms_px = 0;
+  std::vector<int> point_ids;
+};
+
+enum class IdiPointKind { kLines, kCurveLine };
+
+// An IDI point: the intersection of two or more EMPL lines (or of a curve and a line).
+struct IdiPoint {
+  int id = -1;
+  Eigen::Vector2d xy = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();  // px^2
+  std::vector<int> line_ids;   // sorted
+  std::vector<int> curve_ids;  // for kCurveLine
+  IdiPointKind kind = IdiPointKind::kLines;
+};
+
+struct FeatureTimings {
+  double gradient_ms = 0, edges_ms = 0, hough_ms = 0, empl_ms = 0, points_ms = 0, curves_ms = 0, total_ms = 0;
+};
+
+struct FeatureResult {
+  int width = 0;
+  int height = 0;
+  double noise_sigma = 0;  // estimated image noise (grey levels)
+  int edge_pixels = 0;
+  std::vector<EmplLine> lines;
+  std::vector<IdiPoint> points;
+  std::vector<Curve> curves;
+  FeatureTimings timing;
+};
+
+// Detects EMPL lines and IDI points. Keeps its buffers between calls, so reuse one detector per
+// camera stream. Not thread safe; use one per thread.
+class FeatureDetector {
+ public:
+  // InvalidArgument when the options fail Check(). With a camera that has distortion, geometry is
+  // fitted in undistorted pixel coordinates; the camera's width/height must match the images.
+  static Result<FeatureDetector> Create(const FeatureOptions& options,
+                                        const std::optional<CameraModel>& camera = std::nullopt);
+  FeatureDetector(FeatureDetector&&) noexcept;
+  FeatureDetector& operator=(FeatureDetector&&) noexcept;
+  ~FeatureDetector();
+
+  // Accepts single-channel 8-bit, 16-bit or float images of at least 16 x 16 px. Colour, empty or
+  // smaller images give InvalidArgument naming what was wrong; an image without lines gives an
+  // empty result.
+  Result<FeatureResult> Detect(const cv::Mat& image);
+
+  const FeatureOptions& options() const;
+
+ private:
+  struct Impl;
+  explicit FeatureDetector(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+// One-shot convenience: creates a detector and runs it once.
+Result<FeatureResult> DetectFeatures(const cv::Mat& image, const FeatureOptions& options = {},
+                                     const std::optional<CameraModel>& camera = std::nullopt);
+
+// The covariance of the intersection of two lines, each given with the covariance of its
+// (angle, offset); nullopt when they are parallel. Used for IDI points and by reconstruction.
+struct LineIntersection {
+  Eigen::Vector2d xy;
+  Eigen::Matrix2d covariance;
+};
+std::optional<LineIntersection> IntersectWithCovariance(const EmplLine& a, const EmplLine& b);
+
+// Cramér-Rao bounds for a straight blurred step edge of contrast A (grey levels) with Gaussian PSF
+// sigma_b and white noise sigma_n, fitted over L px (the formula, sigma_e^2 = sigma_b^2 + 1/12):
+// offset at the segment centre and angle (rad).
+double OffsetBoundPx(double contrast, double noise_sigma, double blur_sigma_px, double length_px);
+double AngleBoundRad(double contrast, double noise_sigma, double blur_sigma_px, double length_px);
+
+}  // namespace idi

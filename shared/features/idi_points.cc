@@ -1,0 +1,166 @@
+#include "shared/features/idi_points.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace idi {
+
+double LineDistanceVariance(const EmplLine& line, const Eigen::Vector2d& x) {
+  // f = n(phi)·x - d; df/dphi = n'(phi)·x, df/dd = -1.
+  const Eigen::Vector2d nd(-line.normal.y(), line.normal.x());
+  const Eigen::Vector2d j(nd.dot(x), -1.0);
+  return j.dot(line.covariance * j);
+}
+
+bool IntersectLinesWeighted(const std::vector<const EmplLine*>& lines, const Eigen::Vector2d& start,
+                            Eigen::Vector2d* xy, Eigen::Matrix2d* covariance) {
+  if (lines.size() < 2) {
+    return false;
+  }
+  Eigen::Vector2d x = start;
+  Eigen::Matrix2d a;
+  for (int iter = 0; iter < 2; ++iter) {
+    a.setZero();
+    Eigen::Vector2d b = Eigen::Vector2d::Zero();
+    for (const EmplLine* l : lines) {
+      const double var = std::max(1e-12, LineDistanceVariance(*l, x));
+      a += l->normal * l->normal.transpose() / var;
+      b += l->normal * l->offset / var;
+    }
+    const double det = a.determinant();
+    if (!(std::fabs(det) > 1e-12 * a.squaredNorm())) {
+      return false;
+    }
+    x = a.inverse() * b;
+  }
+  if (!x.allFinite()) {
+    return false;
+  }
+  *xy = x;
+  *covariance = a.inverse();
+  return covariance->allFinite();
+}
+
+std::optional<LineIntersection> IntersectWithCovariance(const EmplLine& a, const EmplLine& b) {
+  const double det = a.normal.x() * b.normal.y() - a.normal.y() * b.normal.x();
+  if (std::fabs(det) < 1e-9) {
+    return std::nullopt;
+  }
+  const Eigen::Vector2d x0((a.offset * b.normal.y() - b.offset * a.normal.y()) / det,
+                           (a.normal.x() * b.offset - b.normal.x() * a.offset) / det);
+  LineIntersection out;
+  if (!IntersectLinesWeighted({&a, &b}, x0, &out.xy, &out.covariance)) {
+    return std::nullopt;
+  }
+  return out;
+}
+
+double DistanceBeyondSegment(const EmplLine& line, const Eigen::Vector2d& x) {
+  const Eigen::Vector2d d = line.p2 - line.p1;
+  const double len = d.norm();
+  if (len <= 0) {
+    return (x - line.p1).norm();
+  }
+  const double t = d.dot(x - line.p1) / len;
+  return std::max({0.0, -t, t - len});
+}
+
+std::vector<IdiPoint> FindIdiPoints(std::vector<EmplLine>* lines_io, const IdiOptions& options, int width, int height) {
+  std::vector<EmplLine>& lines = *lines_io;
+  const double min_sin = std::sin(options.min_angle_deg * 3.14159265358979323846 / 180.0);
+  struct Candidate {
+    Eigen::Vector2d xy;
+    int a, b;
+  };
+  std::vector<Candidate> cand;
+  const std::size_t n = lines.size();
+  std::vector<double> ext(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    ext[i] = (lines[i].extension1 - lines[i].p1).norm();
+    lines[i].point_ids.clear();
+  }
+  const double m = options.image_margin_px;
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t j = i + 1; j < n; ++j) {
+      const EmplLine& a = lines[i];
+      const EmplLine& b = lines[j];
+      const double det = a.normal.x() * b.normal.y() - a.normal.y() * b.normal.x();
+      if (std::fabs(det) < min_sin) {
+        continue;
+      }
+      const Eigen::Vector2d x((a.offset * b.normal.y() - b.offset * a.normal.y()) / det,
+                              (a.normal.x() * b.offset - b.normal.x() * a.offset) / det);
+      if (x.x() < -0.5 - m || x.y() < -0.5 - m || x.x() > width - 0.5 + m || x.y() > height - 0.5 + m) {
+        continue;
+      }
+      if (DistanceBeyondSegment(a, x) > ext[i] || DistanceBeyondSegment(b, x) > ext[j]) {
+        continue;
+      }
+      cand.push_back({x, static_cast<int>(i), static_cast<int>(j)});
+    }
+  }
+  // Intersections closer than the merge radius are one point (§8.8.2 "non unique point").
+  std::vector<int> parent(cand.size());
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int x) {
+    while (parent[static_cast<std::size_t>(x)] != x) {
+      parent[static_cast<std::size_t>(x)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
+      x = parent[static_cast<std::size_t>(x)];
+    }
+    return x;
+  };
+  const double r2 = options.merge_radius_px * options.merge_radius_px;
+  for (std::size_t i = 0; i < cand.size(); ++i) {
+    for (std::size_t j = i + 1; j < cand.size(); ++j) {
+      if ((cand[i].xy - cand[j].xy).squaredNorm() <= r2) {
+        parent[static_cast<std::size_t>(find(static_cast<int>(i)))] = find(static_cast<int>(j));
+      }
+    }
+  }
+  std::vector<std::vector<int>> groups(cand.size());
+  for (std::size_t i = 0; i < cand.size(); ++i) {
+    groups[static_cast<std::size_t>(find(static_cast<int>(i)))].push_back(static_cast<int>(i));
+  }
+  std::vector<IdiPoint> points;
+  for (const std::vector<int>& group : groups) {
+    if (group.empty()) {
+      continue;
+    }
+    std::vector<int> ids;
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (int c : group) {
+      ids.push_back(cand[static_cast<std::size_t>(c)].a);
+      ids.push_back(cand[static_cast<std::size_t>(c)].b);
+      mean += cand[static_cast<std::size_t>(c)].xy;
+    }
+    mean /= static_cast<double>(group.size());
+    std::sort(ids.begin(), ids.end());
+    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+    std::vector<const EmplLine*> ls;
+    for (int id : ids) {
+      ls.push_back(&lines[static_cast<std::size_t>(id)]);
+    }
+    IdiPoint p;
+    if (!IntersectLinesWeighted(ls, mean, &p.xy, &p.covariance)) {
+      continue;
+    }
+    p.id = static_cast<int>(points.size());
+    for (int id : ids) {
+      p.line_ids.push_back(lines[static_cast<std::size_t>(id)].id);
+      lines[static_cast<std::size_t>(id)].point_ids.push_back(p.id);
+    }
+    points.push_back(std::move(p));
+  }
+  // Points on each line ordered from p1 to p2.
+  for (EmplLine& l : lines) {
+    const Eigen::Vector2d d = l.p2 - l.p1;
+    std::sort(l.point_ids.begin(), l.point_ids.end(), [&](int a, int b) {
+      return d.dot(points[static_cast<std::size_t>(a)].xy - l.p1) < d.dot(points[static_cast<std::size_t>(b)].xy - l.p1);
+    });
+  }
+  return points;
+}
+
+}  // namespace idi

@@ -1,0 +1,30 @@
+// IDI points (§7.10): intersections of EMPL lines near their segments, with topology and covariance.
+#pragma once
+
+#include <vector>
+
+#include "shared/features/features.h"
+
+namespace idi {
+
+// The variance of the signed distance n·x - d of point x from a line, from the line's (angle, offset)
+// covariance.
+double LineDistanceVariance(const EmplLine& line, const Eigen::Vector2d& x);
+
+// Weighted least-squares point of two or more lines, each weighted by the inverse variance of its
+// distance at the point; the covariance is the inverse of the normal matrix (for two lines this is
+// exactly the first-order propagation of both lines' covariances). False if degenerate.
+bool IntersectLinesWeighted(const std::vector<const EmplLine*>& lines, const Eigen::Vector2d& start,
+                            Eigen::Vector2d* xy, Eigen::Matrix2d* covariance);
+
+// Finds the IDI points of `lines` (§7.10): pairs meeting at least min_angle_deg apart whose
+// intersection lies on both confirmed segments or their unconfirmed extensions (§8.8.2); points
+// closer than merge_radius_px become one point of all their lines. Sets each line's point_ids
+// (ordered from p1 to p2) and returns the points with ids 0..n-1.
+std::vector<IdiPoint> FindIdiPoints(std::vector<EmplLine>* lines, const IdiOptions& options, int width, int height);
+
+// Distance of x beyond the confirmed segment of `line` measured along the line (0 when x projects
+// inside [p1, p2]).
+double DistanceBeyondSegment(const EmplLine& line, const Eigen::Vector2d& x);
+
+}  // namespace idi

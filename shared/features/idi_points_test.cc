@@ -1,0 +1,112 @@
+// IDI points from EMPL lines: intersections near segments only, one point where three lines meet,
+// topology both ways, and a covariance equal to the propagated line covariances.
+#include "shared/features/idi_points.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <random>
+
+#include "shared/features/empl.h"
+
+namespace idi {
+namespace {
+
+EmplLine MakeLine(int id, const Vec2d& a, const Vec2d& b, double var_angle = 1e-6, double var_offset = 1e-3) {
+  EmplLine l;
+  l.id = id;
+  const Vec2d d = (b - a).normalized();
+  l.normal = Vec2d(-d.y(), d.x());
+  if (std::atan2(l.normal.y(), l.normal.x()) < 0) l.normal = -l.normal;
+  l.offset = l.normal.dot(a);
+  l.p1 = a;
+  l.p2 = b;
+  l.length_px = (b - a).norm();
+  const double ext = ExtensionLength(EmplOptions{}, l.length_px);
+  l.extension1 = a - ext * d;
+  l.extension2 = b + ext * d;
+  // Uncorrelated at the segment's middle: cov(angle, offset) with offset measured at the origin.
+  const Vec2d mid = 0.5 * (a + b);
+  const Vec2d nd(-l.normal.y(), l.normal.x());
+  Eigen::Matrix2d j;
+  j << 1, 0, nd.dot(mid), 1;
+  l.covariance = j * Eigen::Vector2d(var_angle, var_offset).asDiagonal() * j.transpose();
+  return l;
+}
+
+TEST(IdiPointsTest, CornerTJunctionAndFarLines) {
+  std::vector<EmplLine> lines = {
+      MakeLine(0, Vec2d(20, 20), Vec2d(120, 22)),   // near-horizontal
+      MakeLine(1, Vec2d(21, 20.5), Vec2d(25, 110)),  // meets line 0 at its left end: L corner
+      MakeLine(2, Vec2d(70, 21), Vec2d(71, 90)),     // stem of a T on line 0
+      MakeLine(3, Vec2d(200, 150), Vec2d(230, 190)),  // far from everything
+  };
+  const auto pts = FindIdiPoints(&lines, IdiOptions{}, 320, 240);
+  ASSERT_EQ(pts.size(), 2u);
+  for (const IdiPoint& p : pts) {
+    EXPECT_EQ(p.line_ids.size(), 2u);
+    EXPECT_EQ(p.line_ids[0], 0);
+    EXPECT_LT(std::fabs(lines[0].SignedDistance(p.xy)), 1e-9);
+    EXPECT_LT(std::fabs(lines[static_cast<std::size_t>(p.line_ids[1])].SignedDistance(p.xy)), 1e-9);
+  }
+  // Topology: line 0 carries both points, ordered from p1 to p2 (the corner first).
+  ASSERT_EQ(lines[0].point_ids.size(), 2u);
+  EXPECT_LT(pts[static_cast<std::size_t>(lines[0].point_ids[0])].xy.x(), pts[static_cast<std::size_t>(lines[0].point_ids[1])].xy.x());
+  EXPECT_TRUE(lines[3].point_ids.empty());
+}
+
+TEST(IdiPointsTest, ThreeLinesMeetingNearOnePlaceGiveOnePoint) {
+  std::vector<EmplLine> lines = {
+      MakeLine(0, Vec2d(50, 50), Vec2d(150, 50)),
+      MakeLine(1, Vec2d(50.3, 50), Vec2d(50.3, 150)),
+      MakeLine(2, Vec2d(50.4, 50.2), Vec2d(120, 120)),
+  };
+  const auto pts = FindIdiPoints(&lines, IdiOptions{}, 320, 240);
+  ASSERT_EQ(pts.size(), 1u);
+  EXPECT_EQ(pts[0].line_ids, (std::vector<int>{0, 1, 2}));
+  EXPECT_LT((pts[0].xy - Vec2d(50.3, 50)).norm(), 0.5);
+  for (const EmplLine& l : lines) {
+    EXPECT_EQ(l.point_ids, std::vector<int>{0});
+  }
+}
+
+TEST(IdiPointsTest, ShallowOrParallelLinesMakeNoPoint) {
+  std::vector<EmplLine> lines = {
+      MakeLine(0, Vec2d(10, 50), Vec2d(150, 50)),
+      MakeLine(1, Vec2d(10, 60), Vec2d(150, 60)),
+      MakeLine(2, Vec2d(10, 52), Vec2d(150, 40)),  // 4.9 deg to line 0: below the 10 deg minimum
+  };
+  EXPECT_TRUE(FindIdiPoints(&lines, IdiOptions{}, 320, 240).empty());
+}
+
+TEST(IdiPointsTest, CovarianceMatchesMonteCarloOfTheLines) {
+  const EmplLine a = MakeLine(0, Vec2d(100, 100), Vec2d(200, 130), 4e-6, 4e-4);
+  const EmplLine b = MakeLine(1, Vec2d(100, 100), Vec2d(140, 200), 9e-6, 1e-3);
+  const auto x = IntersectWithCovariance(a, b);
+  ASSERT_TRUE(x.has_value());
+  std::mt19937 rng(3);
+  std::normal_distribution<double> g;
+  Eigen::Matrix2d emp = Eigen::Matrix2d::Zero();
+  const int n = 20000;
+  for (int i = 0; i < n; ++i) {
+    EmplLine pa = a, pb = b;
+    for (EmplLine* l : {&pa, &pb}) {
+      const Eigen::Matrix2d chol = l->covariance.llt().matrixL();
+      const Eigen::Vector2d dv = chol * Eigen::Vector2d(g(rng), g(rng));
+      const double ang = std::atan2(l->normal.y(), l->normal.x()) + dv(0);
+      l->normal = Vec2d(std::cos(ang), std::sin(ang));
+      l->offset += dv(1);
+    }
+    const double det = pa.normal.x() * pb.normal.y() - pa.normal.y() * pb.normal.x();
+    const Vec2d p((pa.offset * pb.normal.y() - pb.offset * pa.normal.y()) / det,
+                  (pa.normal.x() * pb.offset - pb.normal.x() * pa.offset) / det);
+    emp += (p - x->xy) * (p - x->xy).transpose();
+  }
+  emp /= n;
+  EXPECT_NEAR(emp(0, 0), x->covariance(0, 0), 0.05 * x->covariance(0, 0));
+  EXPECT_NEAR(emp(1, 1), x->covariance(1, 1), 0.05 * x->covariance(1, 1));
+  EXPECT_NEAR(emp(0, 1), x->covariance(0, 1), 0.05 * std::sqrt(x->covariance(0, 0) * x->covariance(1, 1)));
+}
+
+}  // namespace
+}  // namespace idi

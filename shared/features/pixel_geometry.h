@@ -1,0 +1,38 @@
+// Maps between image pixels and the coordinates lines are fitted in: the same pixels without a
+// camera, undistorted pixels (same K) with a camera that has lens distortion.
+#pragma once
+
+#include <opencv2/core.hpp>
+#include <optional>
+
+#include "shared/camera/pinhole.h"
+
+namespace idi {
+
+class PixelGeometry {
+ public:
+  PixelGeometry() = default;
+  // Precomputes the undistortion of every pixel (a one-time cost per detector).
+  explicit PixelGeometry(const CameraModel& camera);
+
+  bool identity() const { return !camera_.has_value(); }
+
+  // Fit coordinates of an integer pixel.
+  Vec2d ToFit(int x, int y) const {
+    if (!camera_) {
+      return Vec2d(x, y);
+    }
+    const cv::Vec2f& v = map_.at<cv::Vec2f>(y, x);
+    return Vec2d(v[0], v[1]);
+  }
+  // Fit coordinates of a sub-pixel image position (bilinear in the precomputed map).
+  Vec2d ToFit(const Vec2d& pixel) const;
+  // Image position of a point given in fit coordinates.
+  Vec2d ToPixel(const Vec2d& fit) const;
+
+ private:
+  std::optional<CameraModel> camera_;
+  cv::Mat map_;  // CV_32FC2, undistorted coordinates of each pixel
+};
+
+}  // namespace idi
