@@ -1,0 +1,58 @@
+#include "workcell/service/workcell_config.h"
+
+#include <gtest/gtest.h>
+
+namespace idi::workcell {
+namespace {
+
+TEST(WorkcellConfigTest, ParsesAFullHardwareConfig) {
+  const auto c = ParseWorkcellConfig(R"(
+backend: hardware
+state_dir: /var/lib/idi-workcell
+control: {socket: /run/idi-workcell/control.sock, group: idi}
+calibration: {max_age_days: 14, recalibrate_when_stale: false}
+hardware:
+  arms: [{name: arm1, host: 10.0.0.11, port: 5100}, {name: arm2, host: 10.0.0.12, port: 5100}]
+  ptus: [{name: left, device: /dev/ttyUSB0}, {name: right, device: /dev/ttyUSB1, baud: 38400}]
+  hand: {device: /dev/ttyUSB2}
+  cameras: [{name: left, device: /dev/video0}, {name: right, backend: mrpt, device: "0"}]
+)", "workcell.yaml");
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_EQ(c->arms[1].host, "10.0.0.12");
+  EXPECT_EQ(c->ptus[1].baud, 38400);
+  EXPECT_EQ(c->ptus[0].baud, 9600);
+  EXPECT_EQ(c->cameras[1].backend, "mrpt");
+  EXPECT_EQ(c->control_group, "idi");
+  EXPECT_DOUBLE_EQ(c->calibration_max_age_days, 14);
+  EXPECT_FALSE(c->recalibrate_when_stale);
+}
+
+TEST(WorkcellConfigTest, DefaultsToTheSimulation) {
+  const auto c = ParseWorkcellConfig("backend: sim\n", "w.yaml");
+  ASSERT_TRUE(c.ok());
+  EXPECT_EQ(c->backend, "sim");
+}
+
+TEST(WorkcellConfigTest, RejectsBadConfigsNamingFileLineAndKey) {
+  struct Case {
+    const char* text;
+    const char* expect;
+  };
+  for (const Case& k : std::initializer_list<Case>{
+           {"backend: sim\nbogus: 1\n", "w.yaml:2: unknown key 'bogus'"},
+           {"backend: robots\n", "backend 'robots'"},
+           {"backend: sim\ncalibration: {max_age_days: -3}\n", "max_age_days' must be positive"},
+           {"backend: sim\ncontrol: {socket: [1]}\n", "'control.socket' has the wrong type"},
+           {"backend: hardware\n", "needs hardware.arms"},
+           {"backend: sim\nhardware: {arms: [{name: a, host: h, port: 99999}]}\n", "port in 1..65535"},
+           {"backend: [", "malformed YAML"},
+           {"", "empty configuration"},
+       }) {
+    const auto c = ParseWorkcellConfig(k.text, "w.yaml");
+    ASSERT_FALSE(c.ok()) << k.text;
+    EXPECT_NE(c.status().message().find(k.expect), std::string::npos) << c.status().message();
+  }
+}
+
+}  // namespace
+}  // namespace idi::workcell
