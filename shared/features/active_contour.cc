@@ -164,7 +164,7 @@ std::vector<Eigen::Vector2d> FitActiveContour(const GradientImages& g, const std
 std::vector<Curve> FindCurves(const GradientImages& g, const EdgeMap& edges, const PixelGeometry& geometry,
                               const std::vector<EmplLine>& lines, const CurveOptions& o) {
   std::vector<Curve> curves;
-  cv::Mat mask = edges.mask.clone();
+  cv::Mat mask = edges.mask.clone();  // 1: free edge pixel, 2: claimed by a Hough peak
   // Edge pixels the lines explain are not curves.
   for (const EmplLine& l : lines) {
     const Eigen::Vector2d d = l.p2 - l.p1;

@@ -506,6 +506,41 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
     }
   }
 
+  // A curved silhouette is not a line (§7.9.1): quadratic in the residuals along the segment.
+  {
+    const Vec2d nn(std::cos(fit.theta), std::sin(fit.theta)), dd(-nn.y(), nn.x());
+    Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+    double tmin = 1e18, tmax = -1e18;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const double t = dd.dot(pts[i] - centre), r = nn.dot(pts[i] - centre) - fit.e;
+      const Eigen::Vector3d row(1.0, t, t * t);
+      ata += wts[i] * row * row.transpose();
+      atb += wts[i] * r * row;
+      tmin = std::min(tmin, t);
+      tmax = std::max(tmax, t);
+    }
+    const Eigen::Vector3d q = ata.ldlt().solve(atb);
+    double rss = 0, sw = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const double t = dd.dot(pts[i] - centre), r = nn.dot(pts[i] - centre) - fit.e;
+      const double res = r - (q(0) + q(1) * t + q(2) * t * t);
+      rss += wts[i] * res * res;
+      sw += wts[i];
+    }
+    const double var = rss / std::max(1.0, static_cast<double>(pts.size()) - 3.0);
+    const Eigen::Matrix3d inv = ata.inverse();
+    const double sigma_c = std::sqrt(std::max(0.0, inv(2, 2) * var));
+    const double half = 0.5 * (tmax - tmin);
+    const double sagitta = std::fabs(q(2)) * half * half;
+    const double radius = std::fabs(q(2)) > 0 ? 0.5 / std::fabs(q(2)) : 1e18;
+    if (q.allFinite() && radius < eo.curve_max_radius_px && sagitta > eo.curve_min_sagitta_px &&
+        std::fabs(q(2)) > 5.0 * sigma_c) {
+      return {};
+    }
+    (void)sw;
+  }
+
   // False merge (§8.8.2 "false augmented EMPL segment"): two edges that nearly line up. Test every
   // breakpoint with a two-piece total least squares fit from prefix sums of the weighted moments.
   if (request.split_depth < 2 && pts.size() >= 2 * static_cast<std::size_t>(ho.min_length_px)) {

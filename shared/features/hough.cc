@@ -78,8 +78,8 @@ void HoughLineFinder::Walk(const GradientImages& g, const EdgeMap& edges, const 
       if (px < 0 || py < 0 || px >= w || py >= h) {
         continue;
       }
-      if (edges.mask.at<std::uint8_t>(py, px) == 0) {
-        continue;
+      if (edges.mask.at<std::uint8_t>(py, px) != 1) {
+        continue;  // not an edge, or claimed by a stronger peak (marked 2)
       }
       int& visit = visit_.at<int>(py, px);
       if (visit == walk_id_) {
@@ -300,8 +300,8 @@ std::vector<HoughSegment> HoughLineFinder::Find(const GradientImages& g, EdgeMap
       for (std::size_t i = best->begin; i < best->end; ++i) {
         const int idx = hits2[i].index;
         const cv::Point p = edges->pixels[static_cast<std::size_t>(idx)];
-        if (edges->mask.at<std::uint8_t>(p) != 0) {
-          edges->mask.at<std::uint8_t>(p) = 0;
+        if (edges->mask.at<std::uint8_t>(p) == 1) {
+          edges->mask.at<std::uint8_t>(p) = 2;
           Vote(idx, -1);
         }
       }

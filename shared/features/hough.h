@@ -23,7 +23,7 @@ inline Vec2d LineDirection(const Vec2d& normal) { return Vec2d(-normal.y(), norm
 
 class HoughLineFinder {
  public:
-  // Finds segments; the edge pixels a segment claims are removed from `edges->mask` and their
+  // Finds segments; the edge pixels a segment claims are marked 2 in `edges->mask` and their
   // votes withdrawn, so the next peak cannot take them again (this is the non-maximum suppression
   // between overlapping peaks).
   std::vector<HoughSegment> Find(const GradientImages& g, EdgeMap* edges, const PixelGeometry& geometry,
