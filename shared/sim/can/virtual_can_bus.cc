@@ -44,6 +44,18 @@ bool VirtualCanEndpoint::Accepts(const hal::CanFrame& frame) const {
   return false;
 }
 
+std::optional<hal::CanFrame> VirtualCanEndpoint::PopDelivered(int64_t t_ns) {
+  if (rx_.empty() || rx_.front().timestamp_ns > t_ns) return std::nullopt;
+  hal::CanFrame f = rx_.front();
+  rx_.pop_front();
+  if (f.error) {
+    ++counters_.error_frames;
+  } else {
+    ++counters_.received;
+  }
+  return f;
+}
+
 Status VirtualCanEndpoint::Send(const hal::CanFrame& frame) { return bus_->Transmit(this, frame); }
 
 Result<std::optional<hal::CanFrame>> VirtualCanEndpoint::Receive(std::chrono::milliseconds timeout) {

@@ -76,6 +76,9 @@ class VirtualCanEndpoint final : public hal::CanBus {
   // When the next frame becomes readable (kNeverNs when none is on its way): a simulated device
   // wakes up then to react to it.
   int64_t next_delivery_ns() const { return rx_.empty() ? kNeverNs : rx_.front().timestamp_ns; }
+  // The next frame delivered by `t_ns`, without touching the clock or running processes: what a
+  // simulated device uses inside its own RunUntil().
+  std::optional<hal::CanFrame> PopDelivered(int64_t t_ns);
 
  private:
   friend class VirtualCanBus;
