@@ -1,0 +1,154 @@
+#include "workcell/app/reconstruct_command.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <yaml-cpp/yaml.h>
+
+#include <filesystem>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "shared/util/atomic_file.h"
+#include "workcell/procedures/structure.h"
+
+namespace idi::workcell {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ReconstructOptions {
+  std::string views_file;
+  bool json = false;
+  std::string ply;
+  std::string overlay_dir;
+};
+
+Result<std::vector<double>> Numbers(const YAML::Node& n, std::size_t count, const std::string& where) {
+  if (!n || !n.IsSequence() || n.size() != count) {
+    return InvalidArgument(where + ": expected a list of " + std::to_string(count) + " numbers");
+  }
+  std::vector<double> out;
+  for (const auto& v : n) {
+    double d = 0;
+    try {
+      d = v.as<double>();
+    } catch (const YAML::Exception&) {
+      return InvalidArgument(where + ": '" + v.Scalar() + "' is not a number");
+    }
+    if (!std::isfinite(d)) return InvalidArgument(where + ": values must be finite");
+    out.push_back(d);
+  }
+  return out;
+}
+
+Result<std::vector<StructureView>> LoadViews(const std::string& path) {
+  IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(path));
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    return ParseError(path + ":" + std::to_string(e.mark.line + 1) + ": malformed YAML: " + e.msg);
+  }
+  if (!root.IsMap() || !root["views"] || !root["views"].IsSequence()) {
+    return InvalidArgument(path + ": expected a map with a list 'views'");
+  }
+  const fs::path base = fs::path(path).parent_path();
+  std::vector<StructureView> views;
+  int index = 0;
+  for (const auto& v : root["views"]) {
+    const std::string where = fmt::format("{}:{}: views[{}]", path, v.Mark().line + 1, index);
+    if (!v.IsMap()) return InvalidArgument(where + ": expected a map");
+    for (const auto& kv : v) {
+      const std::string key = kv.first.as<std::string>();
+      if (key != "image" && key != "K" && key != "distortion" && key != "cam_from_world") {
+        return InvalidArgument(where + ": unknown key '" + key + "'");
+      }
+    }
+    if (!v["image"]) return InvalidArgument(where + ": missing 'image'");
+    StructureView sv;
+    const fs::path image_path = base / v["image"].as<std::string>();
+    sv.name = image_path.filename().string();
+    sv.image = cv::imread(image_path.string(), cv::IMREAD_GRAYSCALE);
+    if (sv.image.empty()) return InvalidArgument(where + ": cannot read image " + image_path.string());
+    IDI_ASSIGN_OR_RETURN(const auto k, Numbers(v["K"], 9, where + ".K"));
+    if (k[1] != 0 || k[3] != 0 || k[6] != 0 || k[7] != 0 || k[8] != 1 || !(k[0] > 0) || !(k[4] > 0)) {
+      return InvalidArgument(where + ".K: expected [fx, 0, cx, 0, fy, cy, 0, 0, 1] with fx, fy > 0");
+    }
+    sv.camera.width = sv.image.cols;
+    sv.camera.height = sv.image.rows;
+    sv.camera.params = {k[0], k[4], k[2], k[5], 0, 0, 0, 0, 0};
+    if (v["distortion"]) {
+      IDI_ASSIGN_OR_RETURN(const auto d, Numbers(v["distortion"], 5, where + ".distortion"));
+      for (int j = 0; j < 5; ++j) sv.camera.params[static_cast<std::size_t>(kK1 + j)] = d[static_cast<std::size_t>(j)];
+    }
+    IDI_ASSIGN_OR_RETURN(const auto m, Numbers(v["cam_from_world"], 12, where + ".cam_from_world"));
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) sv.cam_from_world.rotation(r, c) = m[static_cast<std::size_t>(4 * r + c)];
+      sv.cam_from_world.translation(r) = m[static_cast<std::size_t>(4 * r + 3)];
+    }
+    views.push_back(std::move(sv));
+    ++index;
+  }
+  return views;
+}
+
+Status RunReconstruct(const ReconstructOptions& o) {
+  IDI_ASSIGN_OR_RETURN(const std::vector<StructureView> views, LoadViews(o.views_file));
+  spdlog::info("reconstruct: {} views from {}", views.size(), o.views_file);
+  IDI_ASSIGN_OR_RETURN(const StructureResult r, ReconstructStructure(views, StructureOptions{}));
+  spdlog::info("reconstruct: {} points, {} edges; features {:.1f} ms, correspondence {:.1f} ms, adjustment {:.1f} ms "
+               "(reprojection RMS {:.3f} -> {:.3f} px)",
+               r.model.points.size(), r.model.edges.size(), r.features_ms, r.correspondence_ms, r.adjustment_ms,
+               r.adjustment.initial_rms_px, r.adjustment.final_rms_px);
+  nlohmann::json out;
+  out["points"] = nlohmann::json::array();
+  for (const ModelPoint& p : r.model.points) {
+    nlohmann::json vs = nlohmann::json::array();
+    for (const Observation& ob : p.observations) vs.push_back(ob.view);
+    out["points"].push_back(
+        {{"id", p.id}, {"xyz_mm", {p.xyz.x(), p.xyz.y(), p.xyz.z()}}, {"views", vs}, {"reproj_rms_px", p.reprojection_rms_px}});
+  }
+  out["edges"] = nlohmann::json::array();
+  for (const auto& [a, b] : r.model.edges) out["edges"].push_back({a, b});
+  if (!o.ply.empty()) IDI_RETURN_IF_ERROR(WriteFileAtomically(o.ply, ModelToPly(r.model)));
+  if (!o.overlay_dir.empty()) {
+    std::error_code ec;
+    fs::create_directories(o.overlay_dir, ec);
+    for (std::size_t v = 0; v < views.size(); ++v) {
+      const fs::path file = fs::path(o.overlay_dir) / (fs::path(views[v].name).stem().string() + "_model.png");
+      if (!cv::imwrite(file.string(), DrawModelOverlay(views[v], r.model, &r.features[v]))) {
+        return IoError(file.string() + ": cannot write the overlay");
+      }
+    }
+  }
+  if (o.json) {
+    std::cout << out.dump() << "\n";
+  } else {
+    for (const ModelPoint& p : r.model.points) {
+      std::cout << fmt::format("point {:3d}  {:10.3f} {:10.3f} {:10.3f} mm  views {}  rms {:.3f} px\n", p.id, p.xyz.x(),
+                               p.xyz.y(), p.xyz.z(), p.observations.size(), p.reprojection_rms_px);
+    }
+    std::cout << fmt::format("{} edges\n", r.model.edges.size());
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+void AddReconstructCommand(CliApp& cli) {
+  auto o = std::make_shared<ReconstructOptions>();
+  CLI::App* cmd = cli.AddCommand(&cli.app, "reconstruct",
+                                 "3D points and edges from several calibrated views (EMPL lines, IDI points, bundle "
+                                 "correspondence, triangulation, bundle adjustment)",
+                                 [o] { return RunReconstruct(*o); });
+  cmd->add_option("--views", o->views_file,
+                  "VIEWS.yaml: views: [{image, K: [9], distortion: [k1,k2,p1,p2,k3], cam_from_world: [12, 3x4 mm]}]")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_flag("--json", o->json, "print {points, edges} as JSON on stdout");
+  cmd->add_option("--ply", o->ply, "write the model as PLY (vertices and edges)");
+  cmd->add_option("--overlay", o->overlay_dir, "write each view with the model drawn into it (PNG)");
+}
+
+}  // namespace idi::workcell

@@ -1,0 +1,139 @@
+#include "workcell/procedures/structure.h"
+
+#include <chrono>
+#include <opencv2/imgproc.hpp>
+
+#include "shared/reconstruction/features_adapter.h"
+
+namespace idi::workcell {
+namespace {
+
+double MsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Undistorted pixel -> the raw (distorted) pixel the camera would record.
+Vec2d Redistort(const CameraModel& c, const Vec2d& undistorted) {
+  const Vec3d p((undistorted.x() - c.cx()) / c.fx(), (undistorted.y() - c.cy()) / c.fy(), 1.0);
+  return ProjectToPixel(c.params.data(), p);
+}
+
+}  // namespace
+
+Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& views, const StructureOptions& options) {
+  const auto t_start = std::chrono::steady_clock::now();
+  if (views.size() < 2) {
+    return InvalidArgument("reconstruction needs at least two views, got " + std::to_string(views.size()));
+  }
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    const StructureView& sv = views[v];
+    const std::string who = "view " + std::to_string(v) + (sv.name.empty() ? "" : " (" + sv.name + ")");
+    if (sv.image.empty()) return InvalidArgument(who + ": empty image");
+    if (sv.image.cols != sv.camera.width || sv.image.rows != sv.camera.height) {
+      return InvalidArgument(who + ": image is " + std::to_string(sv.image.cols) + "x" + std::to_string(sv.image.rows) +
+                             " but the camera is " + std::to_string(sv.camera.width) + "x" +
+                             std::to_string(sv.camera.height));
+    }
+    if (!sv.cam_from_world.rotation.allFinite() || !sv.cam_from_world.translation.allFinite()) {
+      return InvalidArgument(who + ": pose is not finite");
+    }
+    const double det = sv.cam_from_world.rotation.determinant();
+    if (std::abs(det - 1.0) > 1e-6 ||
+        (sv.cam_from_world.rotation * sv.cam_from_world.rotation.transpose() - Mat3d::Identity()).norm() > 1e-6) {
+      return InvalidArgument(who + ": cam_from_world's rotation is not a rotation (inconsistent projection matrix)");
+    }
+  }
+  StructureResult out;
+  std::vector<AdaptedFeatures> adapted;
+  auto t0 = std::chrono::steady_clock::now();
+  for (const StructureView& sv : views) {
+    cv::Mat gray = sv.image;
+    if (gray.channels() == 3) cv::cvtColor(sv.image, gray, cv::COLOR_BGR2GRAY);
+    IDI_ASSIGN_OR_RETURN(const FeatureResult f,
+                         DetectFeatures(gray, options.features, std::optional<CameraModel>(sv.camera)));
+    adapted.push_back(FromFeatureResult(f));
+    out.features.push_back(f);
+  }
+  out.features_ms = MsSince(t0);
+  t0 = std::chrono::steady_clock::now();
+  std::vector<CorrespondenceView> cviews;
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    cviews.push_back({&adapted[v].features, &views[v].camera, views[v].cam_from_world});
+  }
+  IDI_ASSIGN_OR_RETURN(out.correspondences, MatchViews(cviews, options.correspondence));
+  out.model = BuildModel(out.correspondences, cviews, options.model);
+  out.correspondence_ms = MsSince(t0);
+  if (options.adjust && !out.model.points.empty()) {
+    t0 = std::chrono::steady_clock::now();
+    std::vector<Vec3d> xyz;
+    for (const ModelPoint& p : out.model.points) xyz.push_back(p.xyz);
+    std::vector<optim::BaView> ba_views;
+    for (const StructureView& sv : views) ba_views.push_back({sv.camera, sv.cam_from_world, 0});
+    std::vector<optim::BaPointObservation> obs;
+    for (std::size_t i = 0; i < out.model.points.size(); ++i) {
+      for (const Observation& o : out.model.points[i].observations) {
+        const ViewPoint& vp = adapted[static_cast<std::size_t>(o.view)].features.points[static_cast<std::size_t>(o.index)];
+        obs.push_back({static_cast<int>(i), o.view, Redistort(views[static_cast<std::size_t>(o.view)].camera, vp.xy),
+                       std::max(vp.sigma_px, 0.02)});
+      }
+    }
+    // Each model edge lies on an EMPL line in the views that see both its ends on one line.
+    std::vector<optim::BaLineObservation> line_obs;
+    for (const auto& [a, b] : out.model.edges) {
+      for (const Observation& oa : out.model.points[static_cast<std::size_t>(a)].observations) {
+        for (const Observation& ob : out.model.points[static_cast<std::size_t>(b)].observations) {
+          if (oa.view != ob.view) continue;
+          const ViewFeatures& f = adapted[static_cast<std::size_t>(oa.view)].features;
+          for (const int la : f.points[static_cast<std::size_t>(oa.index)].lines) {
+            for (const int lb : f.points[static_cast<std::size_t>(ob.index)].lines) {
+              if (la != lb) continue;
+              const double sigma = std::max(adapted[static_cast<std::size_t>(oa.view)].line_sigma_px[static_cast<std::size_t>(la)], 0.01);
+              line_obs.push_back({a, oa.view, f.lines[static_cast<std::size_t>(la)].line, sigma});
+              line_obs.push_back({b, oa.view, f.lines[static_cast<std::size_t>(la)].line, sigma});
+            }
+          }
+        }
+      }
+    }
+    IDI_ASSIGN_OR_RETURN(out.adjustment, optim::BundleAdjust(&xyz, &ba_views, obs, line_obs, options.bundle_adjustment));
+    for (std::size_t i = 0; i < xyz.size(); ++i) {
+      out.model.points[i].xyz = xyz[i];
+      out.model.points[i].reprojection_rms_px = out.adjustment.point_rms_px[i];
+    }
+    out.adjustment_ms = MsSince(t0);
+  }
+  out.total_ms = MsSince(t_start);
+  return out;
+}
+
+cv::Mat DrawModelOverlay(const StructureView& view, const StructureModel& model, const FeatureResult* features) {
+  cv::Mat canvas;
+  if (view.image.channels() == 1) {
+    cv::cvtColor(view.image, canvas, cv::COLOR_GRAY2BGR);
+  } else {
+    canvas = view.image.clone();
+  }
+  auto to_cv = [](const Vec2d& p) { return cv::Point2d(p.x(), p.y()); };
+  if (features != nullptr) {
+    for (const EmplLine& l : features->lines) {
+      cv::line(canvas, to_cv(l.p1), to_cv(l.p2), cv::Scalar(160, 160, 0), 1, cv::LINE_AA);
+    }
+  }
+  std::vector<std::optional<Vec2d>> px;
+  for (const ModelPoint& p : model.points) px.push_back(Project(view.camera, view.cam_from_world * p.xyz));
+  for (const auto& [a, b] : model.edges) {
+    if (px[static_cast<std::size_t>(a)] && px[static_cast<std::size_t>(b)]) {
+      cv::line(canvas, to_cv(*px[static_cast<std::size_t>(a)]), to_cv(*px[static_cast<std::size_t>(b)]),
+               cv::Scalar(0, 255, 0), 1, cv::LINE_AA);
+    }
+  }
+  for (std::size_t i = 0; i < px.size(); ++i) {
+    if (!px[i]) continue;
+    cv::circle(canvas, to_cv(*px[i]), 3, cv::Scalar(0, 0, 255), 1, cv::LINE_AA);
+    cv::putText(canvas, std::to_string(model.points[i].id), to_cv(*px[i] + Vec2d(4, -4)), cv::FONT_HERSHEY_SIMPLEX, 0.35,
+                cv::Scalar(0, 0, 255), 1, cv::LINE_AA);
+  }
+  return canvas;
+}
+
+}  // namespace idi::workcell

@@ -1,0 +1,47 @@
+// 3D structure from views (chapter 8): EMPL lines and IDI points in every image, automatic bundle
+// correspondence across the views, triangulation, the model of points and edges, and bundle
+// adjustment with point and line residuals. Used by `idi-workcell reconstruct` and the scan job.
+#pragma once
+
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "shared/features/features.h"
+#include "shared/optim/bundle_adjustment.h"
+#include "shared/reconstruction/correspondence.h"
+#include "shared/reconstruction/structure_model.h"
+
+namespace idi::workcell {
+
+struct StructureView {
+  std::string name;
+  cv::Mat image;            // 8-bit grey (colour is converted)
+  CameraModel camera;       // intrinsics with distortion; width/height must match the image
+  Rigid3d cam_from_world;   // from the calibrated chain (§8.3), mm
+};
+
+struct StructureOptions {
+  FeatureOptions features;
+  CorrespondenceOptions correspondence;
+  ModelOptions model;
+  optim::BundleAdjustmentOptions bundle_adjustment;
+  bool adjust = true;
+};
+
+struct StructureResult {
+  StructureModel model;                    // after bundle adjustment
+  std::vector<FeatureResult> features;     // per view (undistorted pixel coordinates)
+  Correspondences correspondences;
+  optim::BundleAdjustmentSummary adjustment;
+  double features_ms = 0, correspondence_ms = 0, adjustment_ms = 0, total_ms = 0;
+};
+
+// InvalidArgument for fewer than two views, an empty image, a camera that does not match its image,
+// or a non-finite pose; views without features simply contribute nothing.
+Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& views, const StructureOptions& options);
+
+// The model drawn back into a view (like Fig. 8.16): edges as lines, points as labelled circles.
+cv::Mat DrawModelOverlay(const StructureView& view, const StructureModel& model, const FeatureResult* features);
+
+}  // namespace idi::workcell

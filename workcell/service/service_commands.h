@@ -1,0 +1,26 @@
+// `idi-workcell run --config FILE` (the service) and its operator clients `status`, `job`, `stop`.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "shared/runtime/cli.h"
+#include "workcell/service/service.h"
+#include "workcell/service/workcell_config.h"
+
+namespace idi::workcell {
+
+// What the service runs: the devices for the configured backend and the jobs they serve.
+struct Cell {
+  std::unique_ptr<DeviceSet> devices;
+  std::vector<JobSpec> jobs;
+  std::vector<std::string> calibration_jobs;      // run (in order) when the calibration is missing/stale
+  std::vector<std::string> calibration_items;     // what a complete calibration holds
+};
+using CellFactory = std::function<Result<Cell>(const WorkcellConfig& config)>;
+
+// Registers run/status/job/stop. `make_cell` builds the devices and jobs for a configuration.
+void AddServiceCommands(CliApp& cli, CellFactory make_cell);
+
+}  // namespace idi::workcell
