@@ -162,22 +162,34 @@ std::vector<Eigen::Vector2d> FitActiveContour(const GradientImages& g, const std
 }
 
 std::vector<Curve> FindCurves(const GradientImages& g, const EdgeMap& edges, const PixelGeometry& geometry,
-                              const std::vector<EmplLine>& lines, const CurveOptions& o) {
+                              const std::vector<EmplLine>& lines, const CurveOptions& o, cv::Mat* work) {
   std::vector<Curve> curves;
-  cv::Mat mask = edges.mask.clone();  // 1: free edge pixel, 2: claimed by a Hough peak
+  // Only edge pixels no Hough peak claimed (1) can start a chain; if there are none, no curves.
+  bool any_free = false;
+  for (const cv::Point& p : edges.pixels) {
+    if (edges.mask.at<std::uint8_t>(p) == 1) {
+      any_free = true;
+      break;
+    }
+  }
+  if (!any_free) {
+    return curves;
+  }
+  edges.mask.copyTo(*work);  // 1: free edge pixel, 2: claimed by a Hough peak
+  cv::Mat& mask = *work;
   // Edge pixels the lines explain are not curves.
   for (const EmplLine& l : lines) {
     const Eigen::Vector2d d = l.p2 - l.p1;
     const double len = d.norm();
     const Eigen::Vector2d u = len > 0 ? Eigen::Vector2d(d / len) : Eigen::Vector2d::UnitX();
-    for (double t = -2; t <= len + 2; t += 0.5) {
+    const bool horizontal = std::fabs(u.x()) >= std::fabs(u.y());
+    for (double t = -2; t <= len + 2; t += 0.7) {
       const Eigen::Vector2d q = geometry.ToPixel(l.p1 + t * u);
-      for (int dy = -2; dy <= 2; ++dy) {
-        for (int dx = -2; dx <= 2; ++dx) {
-          const int x = static_cast<int>(std::lround(q.x())) + dx, y = static_cast<int>(std::lround(q.y())) + dy;
-          if (x >= 0 && y >= 0 && x < mask.cols && y < mask.rows) {
-            mask.at<std::uint8_t>(y, x) = 0;
-          }
+      const int qx = RoundToInt(q.x()), qy = RoundToInt(q.y());
+      for (int k = -2; k <= 2; ++k) {
+        const int x = horizontal ? qx : qx + k, y = horizontal ? qy + k : qy;
+        if (x >= 0 && y >= 0 && x < mask.cols && y < mask.rows) {
+          mask.at<std::uint8_t>(y, x) = 0;
         }
       }
     }

@@ -17,9 +17,10 @@ std::vector<Eigen::Vector2d> FitActiveContour(const GradientImages& g, const std
                                               const CurveOptions& options);
 
 // Curves from the edge pixels left in `edges` after the Hough transform, minus those near `lines`.
-// Output points are in fit coordinates (undistorted when the geometry has distortion).
+// Output points are in fit coordinates (undistorted when the geometry has distortion). `work` is a
+// scratch mask kept by the caller between frames.
 std::vector<Curve> FindCurves(const GradientImages& g, const EdgeMap& edges, const PixelGeometry& geometry,
-                              const std::vector<EmplLine>& lines, const CurveOptions& options);
+                              const std::vector<EmplLine>& lines, const CurveOptions& options, cv::Mat* work);
 
 // Adds IDI points where a curve crosses a line's segment (or its extension) or ends on it; sets
 // the curves' and lines' point_ids.

@@ -150,12 +150,14 @@ struct FeatureDetector::Impl {
   GradientImages gradients;
   EdgeMap edges;
   HoughLineFinder hough;
+  cv::Mat curve_mask;
+  std::vector<EmplPixel> empl_scratch;
 
   // Merges collinear pieces (§8.8.2): same line to within the tolerances, gap no larger than the
   // Hough gap (or overlapping, i.e. two peaks of one edge).
   void MergeCollinear(const EmplFitter& fitter, std::vector<EmplFitResult>* fits) const {
     const EmplOptions& eo = options.empl;
-    for (int pass = 0; pass < 8; ++pass) {
+    for (std::size_t pass = 0; pass <= fits->size() + 1; ++pass) {
       bool merged = false;
       for (std::size_t i = 0; i < fits->size() && !merged; ++i) {
         for (std::size_t j = i + 1; j < fits->size() && !merged; ++j) {
@@ -252,9 +254,28 @@ Result<FeatureResult> FeatureDetector::Detect(const cv::Mat& image) {
   const std::vector<HoughSegment> segments = m.hough.Find(m.gradients, &m.edges, m.geometry, m.options.hough);
   const auto t_hough = std::chrono::steady_clock::now();
 
-  EmplFitter fitter(m.gradients, m.geometry, m.edges, m.options);
+  EmplFitter fitter(m.gradients, m.geometry, m.edges, m.options, &m.empl_scratch);
   std::vector<EmplFitResult> fits;
   for (const HoughSegment& seg : segments) {
+    // A weaker peak on an edge that an EMPL line already explains (the EMPL fit grows a segment to
+    // the edge's full length, beyond the pixels its Hough peak claimed) adds nothing.
+    const Vec2d foot = seg.normal * seg.offset, dir = LineDirection(seg.normal);
+    const Vec2d a = foot + seg.t0 * dir, b = foot + seg.t1 * dir;
+    bool explained = false;
+    for (const EmplFitResult& f : fits) {
+      const EmplLine& l = f.line;
+      if (std::fabs(l.SignedDistance(a)) < 1.5 && std::fabs(l.SignedDistance(b)) < 1.5) {
+        const Vec2d u = l.Direction();
+        const double ta = u.dot(a - l.p1), tb = u.dot(b - l.p1);
+        if (std::min(ta, tb) >= -2.0 && std::max(ta, tb) <= l.length_px + 2.0) {
+          explained = true;
+          break;
+        }
+      }
+    }
+    if (explained) {
+      continue;
+    }
     EmplRequest req;
     req.segment = seg;
     for (EmplFitResult& f : fitter.Fit(req)) {
@@ -273,7 +294,7 @@ Result<FeatureResult> FeatureDetector::Detect(const cv::Mat& image) {
   result.points = FindIdiPoints(&result.lines, m.options.idi, image.cols, image.rows);
   const auto t_points = std::chrono::steady_clock::now();
   if (m.options.curves.enabled) {
-    result.curves = FindCurves(m.gradients, m.edges, m.geometry, result.lines, m.options.curves);
+    result.curves = FindCurves(m.gradients, m.edges, m.geometry, result.lines, m.options.curves, &m.curve_mask);
     AddCurveLinePoints(m.options.idi, &result.curves, &result.lines, &result.points);
   }
   const auto t_end = std::chrono::steady_clock::now();

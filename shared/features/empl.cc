@@ -138,11 +138,12 @@ void SetLineGeometry(double theta, double e, const Vec2d& centre, const Eigen::M
 }
 
 EmplFitter::EmplFitter(const GradientImages& g, const PixelGeometry& geometry, const EdgeMap& edges,
-                       const FeatureOptions& options)
+                       const FeatureOptions& options, std::vector<EmplPixel>* scratch)
     : g_(g),
       geometry_(geometry),
       edges_(edges),
       options_(options),
+      scratch_(scratch),
       cos_tol_(std::cos(options.empl.max_angle_error_deg * kEmplPi / 180.0)) {}
 
 void EmplFitter::Scan(const Vec2d& normal, double offset, double t_lo, double t_hi, std::vector<Station>* out) const {
@@ -152,7 +153,9 @@ void EmplFitter::Scan(const Vec2d& normal, double offset, double t_lo, double t_
   const Vec2d dir = LineDirection(normal);
   const Vec2d foot = normal * offset;
   const bool ident = geometry_.identity();
-  const double step = ident ? 0.5 : 0.35;
+  // Without distortion the major coordinate advances by max(|dir.x|, |dir.y|) >= 0.707 per unit t:
+  // stepping by the inverse visits every column (or row) once.
+  const double step = ident ? 1.0 / std::max(std::fabs(dir.x()), std::fabs(dir.y())) - 1e-9 : 0.35;
   int last_major = std::numeric_limits<int>::min();
   bool last_horizontal = true;
   std::array<double, 64> gn{}, gm{};
@@ -164,7 +167,7 @@ void EmplFitter::Scan(const Vec2d& normal, double offset, double t_lo, double t_
     }
     const bool horizontal = std::fabs(dir_px.x()) >= std::fabs(dir_px.y());
     const double qmaj = horizontal ? q.x() : q.y();
-    const int major = static_cast<int>(std::lround(qmaj));
+    const int major = RoundToInt(qmaj);
     if (major == last_major && horizontal == last_horizontal) {
       continue;
     }
@@ -173,7 +176,7 @@ void EmplFitter::Scan(const Vec2d& normal, double offset, double t_lo, double t_
     const double dmaj = horizontal ? dir_px.x() : dir_px.y();
     const double dmin = horizontal ? dir_px.y() : dir_px.x();
     const double minor = (horizontal ? q.y() : q.x()) + (major - qmaj) * dmin / dmaj;
-    const int base = static_cast<int>(std::lround(minor));
+    const int base = RoundToInt(minor);
     const int major_size = horizontal ? w : h, minor_size = horizontal ? h : w;
     if (major < 0 || major >= major_size || base - delta - 1 < 0 || base + delta + 1 >= minor_size) {
       continue;
@@ -238,7 +241,7 @@ void EmplFitter::Scan(const Vec2d& normal, double offset, double t_lo, double t_
         s.width2 = width2;
         const int px = horizontal ? major : base + best_k;
         const int py = horizontal ? base + best_k : major;
-        double ang = std::atan2(static_cast<double>(g_.gy.at<float>(py, px)), static_cast<double>(g_.gx.at<float>(py, px)));
+        double ang = FastAtan2(g_.gy.at<float>(py, px), g_.gx.at<float>(py, px));
         if (ang < 0) {
           ang += kEmplPi;
         }
@@ -348,7 +351,8 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
     return {};
   }
   const double gap = ho.max_gap_px + 1.0;
-  std::vector<Station> st;
+  std::vector<Station> st, extra;
+  std::vector<double> prefix;
   std::vector<Vec2d> pts;
   std::vector<double> wts, alphas;
   std::vector<std::size_t> idx;
@@ -360,9 +364,10 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
   for (int iter = 0; iter < eo.max_iterations; ++iter) {
     double lo = std::max(ta - gap - 2, request.t_limit_lo);
     double hi = std::min(tb + gap + 2, request.t_limit_hi);
-    // Scan, growing the range while the edge evidence reaches its ends.
-    for (int grow = 0; grow < 40; ++grow) {
-      Scan(normal, offset, lo, hi, &st);
+    // Scan, growing the range while the edge evidence reaches its ends (only the new stretch is
+    // scanned each time).
+    Scan(normal, offset, lo, hi, &st);
+    for (int grow = 0; grow < 64; ++grow) {
       if (st.empty()) {
         return {};
       }
@@ -377,7 +382,7 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
       }
       // Adaptive local threshold (eq. 7.29): alpha times the mean magnitude within +-epsilon.
       const std::size_t ns = st.size();
-      std::vector<double> prefix(ns + 1, 0.0);
+      prefix.assign(ns + 1, 0.0);
       for (std::size_t i = 0; i < ns; ++i) {
         prefix[i + 1] = prefix[i] + st[i].band_mean;
       }
@@ -394,12 +399,28 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
       if (first_valid == st.end()) {
         return {};
       }
-      if (first_valid->t - st.front().t < gap && lo > request.t_limit_lo && st.front().t - lo < 2) {
-        lo = std::max(lo - 48, request.t_limit_lo);
+      const bool grow_lo = first_valid->t - st.front().t < gap && lo > request.t_limit_lo && st.front().t - lo < 2;
+      const bool grow_hi = st.back().t - last_valid->t < gap && hi < request.t_limit_hi && hi - st.back().t < 2;
+      if (grow_lo) {
+        const double new_lo = std::max(lo - 64, request.t_limit_lo);
+        Scan(normal, offset, new_lo, lo - 0.25, &extra);
+        const Station front = st.front();
+        std::erase_if(extra, [&](const Station& x) {
+          return x.t >= front.t || (x.major == front.major && x.horizontal == front.horizontal);
+        });
+        st.insert(st.begin(), extra.begin(), extra.end());
+        lo = new_lo;
         grew = true;
       }
-      if (st.back().t - last_valid->t < gap && hi < request.t_limit_hi && hi - st.back().t < 2) {
-        hi = std::min(hi + 48, request.t_limit_hi);
+      if (grow_hi) {
+        const double new_hi = std::min(hi + 64, request.t_limit_hi);
+        Scan(normal, offset, hi + 0.25, new_hi, &extra);
+        const Station back = st.back();
+        std::erase_if(extra, [&](const Station& x) {
+          return x.t <= back.t || (x.major == back.major && x.horizontal == back.horizontal);
+        });
+        st.insert(st.end(), extra.begin(), extra.end());
+        hi = new_hi;
         grew = true;
       }
       if (!grew) {
@@ -488,6 +509,8 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
     const Vec2d foot = new_normal * new_offset, dir = LineDirection(new_normal);
     const double sgn = new_normal.dot(normal) >= 0 ? 1.0 : -1.0;
     const Vec2d pa = st[run_begin].point, pb = st[run_end - 1].point;
+    const double moved = std::max(std::fabs((new_normal.dot(pa) - new_offset) - sgn * (normal.dot(pa) - offset)),
+                                  std::fabs((new_normal.dot(pb) - new_offset) - sgn * (normal.dot(pb) - offset)));
     normal = sgn * new_normal;
     offset = sgn * new_offset;
     const Vec2d dir_kept = LineDirection(normal), foot_kept = normal * offset;
@@ -498,7 +521,9 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
     }
     (void)foot;
     (void)dir;
-    if (change < 1e-3 && iter > 0) {
+    // The stations depend on the line only through the band's placement: rescan only when the
+    // line moved noticeably over the segment (it is refitted from the same stations otherwise).
+    if ((change < 1e-3 && iter > 0) || moved < 0.3) {
       break;
     }
     for (Station& s : st) {
@@ -556,14 +581,16 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
                     pre[i][4] + w * q.x() * q.y(),
                     pre[i][5] + w * q.y() * q.y()};
     }
-    auto tls = [&](std::size_t a, std::size_t b, double* angle) {
+    auto tls = [&](std::size_t a, std::size_t b, double* angle) {  // angle may be null
       double m[6];
       for (int k = 0; k < 6; ++k) {
         m[k] = pre[b][static_cast<std::size_t>(k)] - pre[a][static_cast<std::size_t>(k)];
       }
       const double mx = m[1] / m[0], my = m[2] / m[0];
       const double cxx = m[3] / m[0] - mx * mx, cxy = m[4] / m[0] - mx * my, cyy = m[5] / m[0] - my * my;
-      *angle = 0.5 * std::atan2(2 * cxy, cxx - cyy);
+      if (angle) {
+        *angle = 0.5 * std::atan2(2 * cxy, cxx - cyy);
+      }
       const double tr = cxx + cyy, det = cxx * cyy - cxy * cxy;
       const double lmin = 0.5 * tr - std::sqrt(std::max(0.0, 0.25 * tr * tr - det));
       return std::max(0.0, lmin) * m[0];
@@ -574,13 +601,17 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
     double best_rss = rss_all, best_dang = 0;
     std::size_t best_k = 0;
     for (std::size_t k = m; k + m <= n; ++k) {
-      double a1, a2;
-      const double rss = tls(0, k, &a1) + tls(k, n, &a2);
+      const double rss = tls(0, k, nullptr) + tls(k, n, nullptr);
       if (rss < best_rss) {
         best_rss = rss;
         best_k = k;
-        best_dang = std::fabs(WrapHalfPi(a1 - a2));
       }
+    }
+    if (best_k > 0) {
+      double a1, a2;
+      tls(0, best_k, &a1);
+      tls(best_k, n, &a2);
+      best_dang = std::fabs(WrapHalfPi(a1 - a2));
     }
     const double f = best_rss > 0 ? (rss_all - best_rss) / 2.0 / (best_rss / static_cast<double>(n - 4)) : 0.0;
     if (best_k > 0 && best_dang > eo.split_angle_deg * kEmplPi / 180.0 && f > 50.0) {
@@ -655,16 +686,12 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
                                    EmplFitResult* result) const {
   const EmplOptions& eo = options_.empl;
   double theta = *theta_io, e = *e_io, sigma = std::clamp(sigma_init, 0.3, 6.0);
-  const int half = std::clamp(static_cast<int>(std::ceil(2.5 * sigma + 1.5)), 3, 9);
+  const int half = std::clamp(static_cast<int>(std::ceil(2.0 * sigma + 1.5)), 3, 9);
   const int w = g_.width(), h = g_.height();
   // Pixels of the clean stations, grouped into chunks with their own contrast and background.
-  struct Px {
-    float ux, uy, value;
-    int chunk;
-    float weight;
-  };
-  std::vector<Px> px;
-  px.reserve((end - begin) * static_cast<std::size_t>(2 * half + 1));
+  using Px = EmplPixel;
+  std::vector<Px>& px = *scratch_;
+  px.clear();
   std::vector<int> chunk_sign;
   int chunk = -1, in_chunk = 0, last_sign = 0;
   double last_t = -1e18;
@@ -704,130 +731,147 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
   }
   std::vector<double> a(static_cast<std::size_t>(n_chunks), 0.0), b(static_cast<std::size_t>(n_chunks), 0.0);
   const NormalTable& normal = Normal();
-  // Contrast and background of each chunk for the current geometry: 2x2 linear least squares.
-  auto solve_linear = [&]() {
-    std::vector<Eigen::Matrix2d> hh(static_cast<std::size_t>(n_chunks), Eigen::Matrix2d::Zero());
-    std::vector<Eigen::Vector2d> rr(static_cast<std::size_t>(n_chunks), Eigen::Vector2d::Zero());
+  // Contrast and background of each chunk for the starting geometry: 2x2 linear least squares.
+  {
+    std::vector<std::array<double, 5>> acc(static_cast<std::size_t>(n_chunks), {0, 0, 0, 0, 0});
     const double c = std::cos(theta), s = std::sin(theta);
     for (const Px& p : px) {
       double cdf, pdf;
       normal.Eval((c * p.ux + s * p.uy - e) / sigma, &cdf, &pdf);
-      const std::size_t k = static_cast<std::size_t>(p.chunk);
-      hh[k] += Eigen::Matrix2d{{cdf * cdf, cdf}, {cdf, 1.0}};
-      rr[k] += Eigen::Vector2d(cdf * p.value, p.value);
+      auto& q = acc[static_cast<std::size_t>(p.chunk)];
+      q[0] += cdf * cdf;
+      q[1] += cdf;
+      q[2] += 1.0;
+      q[3] += cdf * p.value;
+      q[4] += p.value;
     }
-    for (std::size_t k = 0; k < hh.size(); ++k) {
-      const Eigen::Vector2d sol = hh[k].ldlt().solve(rr[k]);
-      a[k] = sol(0);
-      b[k] = sol(1);
+    for (std::size_t k = 0; k < acc.size(); ++k) {
+      const auto& q = acc[k];
+      const double det = q[0] * q[2] - q[1] * q[1];
+      if (!(std::fabs(det) > 1e-9 * (q[0] * q[2] + 1e-30))) {
+        return false;
+      }
+      a[k] = (q[2] * q[3] - q[1] * q[4]) / det;
+      b[k] = (q[0] * q[4] - q[1] * q[3]) / det;
     }
+  }
+  // Gauss-Newton on (theta, e, sigma) with each chunk's (A, B) eliminated by the Schur complement.
+  // Each pass accumulates the normal equations at the current estimate; a pass that finds a larger
+  // residual than the previous one reverts to it and stops (the start is already close).
+  struct ChunkAcc {
+    double hcc00 = 0, hcc01 = 0, hcc11 = 0;  // [cdf, 1]^T [cdf, 1]
+    double hcg[2][3] = {{0, 0, 0}, {0, 0, 0}};
+    double bc0 = 0, bc1 = 0;
   };
-  solve_linear();
-  // Gauss-Newton with the chunk parameters eliminated (Schur complement).
-  double mu = 1e-6;
+  std::vector<ChunkAcc> chunks(static_cast<std::size_t>(n_chunks));
   Eigen::Matrix3d s_mat = Eigen::Matrix3d::Identity();
-  double rss = 0;
-  auto evaluate = [&](double th, double ee, double sg, const std::vector<double>& aa, const std::vector<double>& bb) {
-    const double c = std::cos(th), s = std::sin(th);
-    double sum = 0;
-    for (const Px& p : px) {
-      double cdf, pdf;
-      normal.Eval((c * p.ux + s * p.uy - ee) / sg, &cdf, &pdf);
-      const std::size_t k = static_cast<std::size_t>(p.chunk);
-      const double r = p.value - (bb[k] + aa[k] * cdf);
-      sum += p.weight * r * r;
+  double rss = 0, prev_rss = std::numeric_limits<double>::infinity();
+  double prev_theta = theta, prev_e = e, prev_sigma = sigma;
+  std::vector<double> prev_a = a, prev_b = b;
+  Eigen::Matrix3d prev_s = s_mat;
+  double outlier_cut = std::numeric_limits<double>::infinity();
+  for (int iter = 0; iter < 8; ++iter) {
+    for (ChunkAcc& ck : chunks) {
+      ck = ChunkAcc{};
     }
-    return sum;
-  };
-  rss = evaluate(theta, e, sigma, a, b);
-  bool converged = false;
-  for (int iter = 0; iter < 12; ++iter) {
-    Eigen::Matrix3d hgg = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d bg = Eigen::Vector3d::Zero();
-    std::vector<Eigen::Matrix2d> hcc(static_cast<std::size_t>(n_chunks), Eigen::Matrix2d::Zero());
-    std::vector<Eigen::Matrix<double, 2, 3>> hcg(static_cast<std::size_t>(n_chunks), Eigen::Matrix<double, 2, 3>::Zero());
-    std::vector<Eigen::Vector2d> bc(static_cast<std::size_t>(n_chunks), Eigen::Vector2d::Zero());
-    const double c = std::cos(theta), s = std::sin(theta);
-    for (const Px& p : px) {
-      const double dist = c * p.ux + s * p.uy - e;
-      const double z = dist / sigma;
+    double h00 = 0, h01 = 0, h02 = 0, h11 = 0, h12 = 0, h22 = 0, g0 = 0, g1 = 0, g2 = 0;
+    rss = 0;
+    const double c = std::cos(theta), s = std::sin(theta), inv_sigma = 1.0 / sigma;
+    for (Px& p : px) {
+      if (p.weight == 0.0f) {
+        continue;
+      }
+      const double z = (c * p.ux + s * p.uy - e) * inv_sigma;
       double cdf, pdf;
       normal.Eval(z, &cdf, &pdf);
       const std::size_t k = static_cast<std::size_t>(p.chunk);
       const double r = p.value - (b[k] + a[k] * cdf);
-      const double ap = a[k] * pdf / sigma;
-      // d model / d(theta, e, sigma), d model / d(A, B)
-      const Eigen::Vector3d jg(ap * (-s * p.ux + c * p.uy), -ap, -ap * z);
-      const Eigen::Vector2d jc(cdf, 1.0);
-      const double wgt = p.weight;
-      hgg += wgt * jg * jg.transpose();
-      bg += wgt * r * jg;
-      hcc[k] += wgt * jc * jc.transpose();
-      hcg[k] += wgt * jc * jg.transpose();
-      bc[k] += wgt * r * jc;
-    }
-    Eigen::Matrix3d schur = hgg;
-    Eigen::Vector3d rhs = bg;
-    std::vector<Eigen::Matrix2d> hcc_inv(static_cast<std::size_t>(n_chunks));
-    for (std::size_t k = 0; k < hcc.size(); ++k) {
-      hcc[k].diagonal() *= 1.0 + 1e-12;
-      hcc_inv[k] = hcc[k].inverse();
-      schur -= hcg[k].transpose() * hcc_inv[k] * hcg[k];
-      rhs -= hcg[k].transpose() * hcc_inv[k] * bc[k];
-    }
-    s_mat = schur;
-    bool accepted = false;
-    for (int tries = 0; tries < 6 && !accepted; ++tries) {
-      Eigen::Matrix3d damped = schur;
-      damped.diagonal() *= 1.0 + mu;
-      const Eigen::Vector3d dg = damped.ldlt().solve(rhs);
-      if (!dg.allFinite()) {
-        return false;
-      }
-      std::vector<double> a2 = a, b2 = b;
-      for (std::size_t k = 0; k < hcc.size(); ++k) {
-        const Eigen::Vector2d dc = hcc_inv[k] * (bc[k] - hcg[k] * dg);
-        a2[k] += dc(0);
-        b2[k] += dc(1);
-      }
-      const double th2 = theta + dg(0), e2 = e + dg(1), sg2 = sigma + dg(2);
-      if (sg2 < 0.1 || sg2 > 12.0) {
-        mu *= 10;
+      if (std::fabs(r) > outlier_cut) {
+        p.weight = 0.0f;  // specks and clutter far off the model
         continue;
       }
-      const double rss2 = evaluate(th2, e2, sg2, a2, b2);
-      if (rss2 <= rss * (1 + 1e-12)) {
-        accepted = true;
-        converged = std::fabs(dg(1)) < 1e-5 && std::fabs(dg(0)) < 1e-7 && std::fabs(dg(2)) < 1e-4;
-        theta = th2;
-        e = e2;
-        sigma = sg2;
-        a = a2;
-        b = b2;
-        rss = rss2;
-        mu = std::max(1e-9, mu * 0.1);
-      } else {
-        mu *= 10;
+      const double ap = a[k] * pdf * inv_sigma;
+      // d model / d(theta, e, sigma); d model / d(A, B) = (cdf, 1).
+      const double j0 = ap * (-s * p.ux + c * p.uy), j1 = -ap, j2 = -ap * z;
+      h00 += j0 * j0;
+      h01 += j0 * j1;
+      h02 += j0 * j2;
+      h11 += j1 * j1;
+      h12 += j1 * j2;
+      h22 += j2 * j2;
+      g0 += r * j0;
+      g1 += r * j1;
+      g2 += r * j2;
+      ChunkAcc& ck = chunks[k];
+      ck.hcc00 += cdf * cdf;
+      ck.hcc01 += cdf;
+      ck.hcc11 += 1.0;
+      ck.hcg[0][0] += cdf * j0;
+      ck.hcg[0][1] += cdf * j1;
+      ck.hcg[0][2] += cdf * j2;
+      ck.hcg[1][0] += j0;
+      ck.hcg[1][1] += j1;
+      ck.hcg[1][2] += j2;
+      ck.bc0 += cdf * r;
+      ck.bc1 += r;
+      rss += r * r;
+    }
+    if (rss > prev_rss * (1.0 + 1e-9)) {
+      theta = prev_theta;
+      e = prev_e;
+      sigma = prev_sigma;
+      a = prev_a;
+      b = prev_b;
+      s_mat = prev_s;
+      rss = prev_rss;
+      break;
+    }
+    Eigen::Matrix3d schur;
+    schur << h00, h01, h02, h01, h11, h12, h02, h12, h22;
+    Eigen::Vector3d rhs(g0, g1, g2);
+    std::vector<Eigen::Matrix2d> hcc_inv(chunks.size());
+    for (std::size_t k = 0; k < chunks.size(); ++k) {
+      const ChunkAcc& ck = chunks[k];
+      Eigen::Matrix2d hcc;
+      hcc << ck.hcc00, ck.hcc01, ck.hcc01, ck.hcc11;
+      const double det = hcc.determinant();
+      if (!(det > 1e-12 * (ck.hcc00 * ck.hcc11 + 1e-30))) {
+        return false;
       }
+      hcc_inv[k] = hcc.inverse();
+      Eigen::Matrix<double, 2, 3> hcg;
+      hcg << ck.hcg[0][0], ck.hcg[0][1], ck.hcg[0][2], ck.hcg[1][0], ck.hcg[1][1], ck.hcg[1][2];
+      schur -= hcg.transpose() * hcc_inv[k] * hcg;
+      rhs -= hcg.transpose() * hcc_inv[k] * Eigen::Vector2d(ck.bc0, ck.bc1);
     }
-    if (!accepted) {
-      converged = true;  // no further decrease: at the minimum to working precision
+    s_mat = schur;
+    const Eigen::Vector3d dg = schur.ldlt().solve(rhs);
+    if (!dg.allFinite()) {
+      return false;
     }
-    // Once, after the first steps: drop pixels far off the model (specks, clutter).
-    if (iter == 1) {
-      const double sig = std::sqrt(rss / static_cast<double>(px.size()));
-      const double cc = std::cos(theta), ss = std::sin(theta);
-      for (Px& p : px) {
-        double cdf, pdf;
-        normal.Eval((cc * p.ux + ss * p.uy - e) / sigma, &cdf, &pdf);
-        const std::size_t k = static_cast<std::size_t>(p.chunk);
-        if (std::fabs(p.value - (b[k] + a[k] * cdf)) > 5.0 * sig) {
-          p.weight = 0.0f;
-        }
-      }
-      rss = evaluate(theta, e, sigma, a, b);
+    prev_theta = theta;
+    prev_e = e;
+    prev_sigma = sigma;
+    prev_a = a;
+    prev_b = b;
+    prev_s = schur;
+    prev_rss = rss;
+    for (std::size_t k = 0; k < chunks.size(); ++k) {
+      const ChunkAcc& ck = chunks[k];
+      Eigen::Matrix<double, 2, 3> hcg;
+      hcg << ck.hcg[0][0], ck.hcg[0][1], ck.hcg[0][2], ck.hcg[1][0], ck.hcg[1][1], ck.hcg[1][2];
+      const Eigen::Vector2d dc = hcc_inv[k] * (Eigen::Vector2d(ck.bc0, ck.bc1) - hcg * dg);
+      a[k] += dc(0);
+      b[k] += dc(1);
     }
-    if (converged && iter >= 2) {
+    theta += dg(0);
+    e += dg(1);
+    sigma = std::clamp(sigma + dg(2), 0.15, 12.0);
+    if (iter == 0) {
+      outlier_cut = 5.0 * std::sqrt(rss / static_cast<double>(px.size()));
+      prev_rss = std::numeric_limits<double>::infinity();  // the cut changes the residual set
+    }
+    if (iter >= 1 && std::fabs(dg(1)) < 2e-4 && std::fabs(dg(0)) < 2e-6 && std::fabs(dg(2)) < 2e-3) {
       break;
     }
   }

@@ -30,10 +30,19 @@ struct EmplFitResult {
   bool photometric = false;  // the photometric refinement converged and was used
 };
 
+// A pixel of the photometric fit: position relative to the line's centre (fit coordinates), value,
+// chunk and weight (0 once rejected as an outlier).
+struct EmplPixel {
+  float ux, uy, value;
+  int chunk;
+  float weight;
+};
+
 class EmplFitter {
  public:
+  // `scratch` is kept by the caller between lines and frames (no reallocation per line).
   EmplFitter(const GradientImages& g, const PixelGeometry& geometry, const EdgeMap& edges,
-             const FeatureOptions& options);
+             const FeatureOptions& options, std::vector<EmplPixel>* scratch);
 
   // Fits the line near `request`; returns no line when there is not enough edge evidence, two when
   // the segment turned out to be two edges that nearly line up (a false merge, §8.8.2).
@@ -50,6 +59,7 @@ class EmplFitter {
   const PixelGeometry& geometry_;
   const EdgeMap& edges_;
   const FeatureOptions& options_;
+  std::vector<EmplPixel>* scratch_;
   double cos_tol_;
 };
 

@@ -71,7 +71,7 @@ void HoughLineFinder::Walk(const GradientImages& g, const EdgeMap& edges, const 
   const int reach = static_cast<int>(std::ceil(options_.band_px));
   for (double t = t_min; t <= t_max; t += step) {
     const Vec2d q = geometry.ToPixel(foot + t * dir);
-    const int qx = static_cast<int>(std::lround(q.x())), qy = static_cast<int>(std::lround(q.y()));
+    const int qx = RoundToInt(q.x()), qy = RoundToInt(q.y());
     for (int k = -reach; k <= reach; ++k) {
       const int px = horizontal ? qx : qx + k;
       const int py = horizontal ? qy + k : qy;
@@ -189,7 +189,7 @@ std::vector<HoughSegment> HoughLineFinder::Find(const GradientImages& g, EdgeMap
     const Vec2d u = geometry.ToFit(p.x, p.y) - centre_;
     ex_[i] = static_cast<float>(u.x());
     ey_[i] = static_cast<float>(u.y());
-    double angle = std::atan2(static_cast<double>(g.gy.at<float>(p)), static_cast<double>(g.gx.at<float>(p)));
+    double angle = FastAtan2(g.gy.at<float>(p), g.gx.at<float>(p));
     if (angle < 0) {
       angle += kPi;
     }

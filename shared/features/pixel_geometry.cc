@@ -43,10 +43,7 @@ Vec2d PixelGeometry::ToFit(const Vec2d& pixel) const {
   return out;
 }
 
-Vec2d PixelGeometry::ToPixel(const Vec2d& fit) const {
-  if (!camera_) {
-    return fit;
-  }
+Vec2d PixelGeometry::Distorted(const Vec2d& fit) const {
   const auto& p = camera_->params;
   const Vec2d xn((fit.x() - p[kCx]) / p[kFx], (fit.y() - p[kCy]) / p[kFy]);
   const Vec2d xd = Distort(p.data(), xn);

@@ -6,6 +6,7 @@
 #include <optional>
 
 #include "shared/camera/pinhole.h"
+#include "shared/features/fast_math.h"
 
 namespace idi {
 
@@ -28,9 +29,10 @@ class PixelGeometry {
   // Fit coordinates of a sub-pixel image position (bilinear in the precomputed map).
   Vec2d ToFit(const Vec2d& pixel) const;
   // Image position of a point given in fit coordinates.
-  Vec2d ToPixel(const Vec2d& fit) const;
+  Vec2d ToPixel(const Vec2d& fit) const { return camera_ ? Distorted(fit) : fit; }
 
  private:
+  Vec2d Distorted(const Vec2d& fit) const;
   std::optional<CameraModel> camera_;
   cv::Mat map_;  // CV_32FC2, undistorted coordinates of each pixel
 };
