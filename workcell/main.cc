@@ -1,5 +1,6 @@
 // idi-workcell: the controller of the two-arm workcell (calibration, scanning, picking).
 #include "shared/runtime/cli.h"
+#include "workcell/app/features_command.h"
 #include "workcell/app/kinematics_command.h"
 
 int main(int argc, char** argv) {
@@ -8,6 +9,7 @@ int main(int argc, char** argv) {
       "from EMPL lines and IDI points, and picks them with the other arm.",
       "idi-workcell");
   idi::workcell::AddKinematicsCommand(cli);
+  idi::workcell::AddFeaturesCommand(cli);
   idi::workcell::AddParamsCommand(cli);
   return idi::RunCli(cli, argc, argv);
 }
