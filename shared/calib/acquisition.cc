@@ -1,0 +1,230 @@
+#include "shared/calib/acquisition.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <queue>
+#include <random>
+
+#include "shared/kinematics/aiming.h"
+
+namespace idi::calib {
+namespace {
+
+double ScaledConditionNumber(const Eigen::MatrixXd& info) {
+  const Eigen::VectorXd d = info.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd s = d.asDiagonal() * info * d.asDiagonal();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(s);
+  const Eigen::VectorXd ev = es.eigenvalues();
+  if (!(ev(0) > 0)) return std::numeric_limits<double>::infinity();
+  return ev(ev.size() - 1) / ev(0);
+}
+
+// 2 x 6 Jacobian of the spot on the plane with respect to the joints (central differences).
+std::optional<Eigen::Matrix<double, 2, 6>> SpotJacobian(const ParamSet& robot, const ParamSet& laser,
+                                                       const Rigid3d& base_from_plane, const Joints& q) {
+  Eigen::Matrix<double, 2, 6> j;
+  const double h = 1e-6;
+  for (std::size_t k = 0; k < 6; ++k) {
+    Joints qp = q, qm = q;
+    qp[k] += h;
+    qm[k] -= h;
+    const auto sp = SpotOnPlane(robot, laser, base_from_plane, qp);
+    const auto sm = SpotOnPlane(robot, laser, base_from_plane, qm);
+    if (!sp || !sm) return std::nullopt;
+    j.col(static_cast<Eigen::Index>(k)) = (*sp - *sm) / (2 * h);
+  }
+  return j;
+}
+
+Joints Clamp(Joints q, const JointLimits& limits, double margin) {
+  for (std::size_t i = 0; i < q.size(); ++i) q[i] = std::clamp(q[i], limits.min[i] + margin, limits.max[i] - margin);
+  return q;
+}
+
+}  // namespace
+
+Status PlanOptions::Check() const {
+  if (!(near_deg > 0 && near_deg < 90) || !(wrist_margin_deg >= 0 && wrist_margin_deg < 80) || !(limit_margin_deg >= 0) ||
+      !(min_length_mm > 0) || max_draws <= 0) {
+    return InvalidArgument("acquisition plan: invalid options");
+  }
+  return Status::Ok();
+}
+
+Status AimLoopOptions::Check() const {
+  if (!(tolerance_mm > 0) || max_iterations <= 0 || !(max_step_rad > 0) || !(limit_margin_rad >= 0)) {
+    return InvalidArgument("closed-loop aiming: invalid options");
+  }
+  return Status::Ok();
+}
+
+Result<std::vector<Joints>> PlanAimConfigurations(const ParamSet& robot, const ParamSet& laser,
+                                                  const Vec3d& target_in_base, int count, const JointLimits& limits,
+                                                  const PlanOptions& o, const ProgressFn& progress) {
+  IDI_RETURN_IF_ERROR(o.Check());
+  if (count <= 0) return InvalidArgument("acquisition plan: count must be positive");
+  if (!target_in_base.allFinite()) return InvalidArgument("acquisition plan: target is not finite");
+  std::mt19937_64 rng(o.seed);
+  const double margin = DegToRad(o.limit_margin_deg);
+  const double cos_near = std::cos(DegToRad(o.near_deg));
+  const double wrist = DegToRad(o.wrist_margin_deg);
+  std::array<std::uniform_real_distribution<double>, kRx130Joints> draw;
+  for (std::size_t i = 0; i < draw.size(); ++i) draw[i] = std::uniform_real_distribution<double>(limits.min[i] + margin, limits.max[i] - margin);
+  IkOptions ik;
+  ik.limit_margin_rad = margin;
+  ik.min_laser_length_mm = o.min_length_mm;
+  ik.tolerance_mm = 1e-6;
+  std::vector<Joints> out;
+  int draws = 0;
+  while (static_cast<int>(out.size()) < count) {
+    if (++draws > o.max_draws) {
+      return NotFound("acquisition plan: only " + std::to_string(out.size()) + " of " + std::to_string(count) +
+                      " configurations aim at the target after " + std::to_string(o.max_draws) +
+                      " random draws: is the target reachable and in front of the robot?");
+    }
+    Joints q;
+    for (std::size_t i = 0; i < q.size(); ++i) q[i] = draw[i](rng);
+    if (std::abs(q[4]) < wrist) continue;
+    const Line3d line = LaserLineInBase(robot.data(), laser.data(), q.data());
+    const Vec3d to = target_in_base - line.origin;
+    if (to.dot(line.direction) < cos_near * to.norm()) continue;
+    const auto aimed = AimLaserAt(robot, laser, q, target_in_base, limits, ik);
+    if (!aimed.ok()) continue;
+    const Joints& qa = aimed->q;
+    if (std::abs(qa[4]) < wrist || !limits.Contains(qa, 0.5 * margin)) continue;
+    const Line3d la = LaserLineInBase(robot.data(), laser.data(), qa.data());
+    if (ProjectOntoLine(la, target_in_base) < o.min_length_mm) continue;
+    out.push_back(qa);
+    if (progress) progress(static_cast<int>(out.size()), count);
+  }
+  return out;
+}
+
+Result<SelectionResult> SelectForConditioning(const RobotCalibrationData& pool, const ParamSet& params,
+                                              const RobotNoiseModel& noise, int per_set) {
+  if (per_set <= 0) return InvalidArgument("selection: per_set must be positive");
+  IDI_ASSIGN_OR_RETURN(const Eigen::MatrixXd j_all, RobotReadingJacobians(pool, params, noise));
+  const Eigen::Index n = j_all.cols();
+  // Scale the unknowns to unit information over the whole pool (log det gains do not depend on it,
+  // but the conditioning of the updates does).
+  Eigen::VectorXd scale = j_all.colwise().norm().transpose();
+  for (Eigen::Index k = 0; k < n; ++k) scale(k) = scale(k) > 0 ? 1.0 / scale(k) : 1.0;
+  const Eigen::MatrixXd js = j_all * scale.asDiagonal();
+  std::array<std::vector<int>, 2> by_set;
+  for (std::size_t i = 0; i < pool.readings.size(); ++i) {
+    if (js.middleRows<2>(2 * static_cast<Eigen::Index>(i)).squaredNorm() > 0) {
+      by_set[static_cast<std::size_t>(pool.readings[i].set - 1)].push_back(static_cast<int>(i));
+    }
+  }
+  for (int s = 0; s < 2; ++s) {
+    if (static_cast<int>(by_set[static_cast<std::size_t>(s)].size()) < per_set) {
+      return InvalidArgument("selection: set " + std::to_string(s + 1) + " has " +
+                             std::to_string(by_set[static_cast<std::size_t>(s)].size()) + " usable candidates, " +
+                             std::to_string(per_set) + " wanted");
+    }
+  }
+  SelectionResult out;
+  {
+    Eigen::MatrixXd info = Eigen::MatrixXd::Zero(n, n);
+    for (int s = 0; s < 2; ++s) {
+      for (int k = 0; k < per_set; ++k) {
+        const auto b = js.middleRows<2>(2 * by_set[static_cast<std::size_t>(s)][static_cast<std::size_t>(k)]);
+        info += b.transpose() * b;
+      }
+    }
+    out.condition_number_first = ScaledConditionNumber(info);
+  }
+  // Lazy greedy D-optimal design: gains of log det only shrink as the design grows (submodular), so a
+  // stale gain is an upper bound and only the top of each queue needs re-evaluating.
+  const double eps = 1e-6;
+  Eigen::MatrixXd m_inv = Eigen::MatrixXd::Identity(n, n) / eps;
+  Eigen::MatrixXd info = eps * Eigen::MatrixXd::Identity(n, n);
+  auto gain = [&](int i) {
+    const auto b = js.middleRows<2>(2 * static_cast<Eigen::Index>(i));
+    const Eigen::Matrix2d s = Eigen::Matrix2d::Identity() + b * m_inv * b.transpose();
+    return std::log(s.determinant());
+  };
+  using Entry = std::pair<double, int>;
+  std::array<std::priority_queue<Entry>, 2> queues;
+  for (int s = 0; s < 2; ++s) {
+    for (int i : by_set[static_cast<std::size_t>(s)]) queues[static_cast<std::size_t>(s)].push({gain(i), i});
+  }
+  for (int step = 0; step < 2 * per_set; ++step) {
+    auto& q = queues[static_cast<std::size_t>(step % 2)];
+    int pick = -1;
+    while (pick < 0) {
+      const Entry top = q.top();
+      q.pop();
+      const double fresh = gain(top.second);
+      if (q.empty() || fresh >= q.top().first) {
+        pick = top.second;
+      } else {
+        q.push({fresh, top.second});
+      }
+    }
+    const auto b = js.middleRows<2>(2 * static_cast<Eigen::Index>(pick));
+    const Eigen::Matrix<double, Eigen::Dynamic, 2> mb = m_inv * b.transpose();
+    const Eigen::Matrix2d s = Eigen::Matrix2d::Identity() + b * mb;
+    m_inv -= mb * s.inverse() * mb.transpose();
+    info += b.transpose() * b;
+    out.chosen.push_back(pick);
+  }
+  out.condition_number = ScaledConditionNumber(info - eps * Eigen::MatrixXd::Identity(n, n));
+  std::sort(out.chosen.begin(), out.chosen.end());
+  return out;
+}
+
+std::optional<Vec2d> SpotOnPlane(const ParamSet& robot, const ParamSet& laser, const Rigid3d& base_from_plane,
+                                 const Joints& q) {
+  const Line3d line = LaserLineInBase(robot.data(), laser.data(), q.data());
+  const Rigid3d plane_from_base = base_from_plane.Inverse();
+  const Vec3d o = plane_from_base * line.origin;
+  const Vec3d d = plane_from_base.RotateVector(line.direction);
+  if (std::abs(d.z()) < 1e-9) return std::nullopt;
+  const double s = -o.z() / d.z();
+  if (!(s > 0)) return std::nullopt;
+  return Vec2d(o.x() + s * d.x(), o.y() + s * d.y());
+}
+
+Result<AimLoopResult> AimClosedLoop(const ParamSet& robot, const ParamSet& laser, const Rigid3d& base_from_plane,
+                                    const Vec2d& target_on_plane, const Joints& start, const JointLimits& limits,
+                                    const JointMover& move, const SpotObserver& observe, const AimLoopOptions& o) {
+  IDI_RETURN_IF_ERROR(o.Check());
+  AimLoopResult out;
+  IDI_ASSIGN_OR_RETURN(out.reading, move(Clamp(start, limits, o.limit_margin_rad)));
+  auto correct = [&](const Vec2d& error) -> Result<Joints> {
+    const auto j = SpotJacobian(robot, laser, base_from_plane, out.reading);
+    if (!j) {
+      return OutOfRange("closed-loop aiming: the laser (nominal model) does not reach the observation plane");
+    }
+    // Minimum-norm correction dq = J^T (J J^T)^-1 e (lightly damped): the joints the spot does not see
+    // stay where they are.
+    Eigen::Matrix2d jjt = *j * j->transpose();
+    jjt.diagonal().array() += 1e-12 * jjt.trace();
+    Eigen::Matrix<double, 6, 1> dq = j->transpose() * jjt.ldlt().solve(error);
+    const double step = dq.cwiseAbs().maxCoeff();
+    if (step > o.max_step_rad) dq *= o.max_step_rad / step;
+    Joints next = out.reading;
+    for (std::size_t k = 0; k < 6; ++k) next[k] += dq(static_cast<Eigen::Index>(k));
+    return move(Clamp(next, limits, o.limit_margin_rad));
+  };
+  for (out.iterations = 0; out.iterations < o.max_iterations; ++out.iterations) {
+    IDI_ASSIGN_OR_RETURN(const Vec2d spot, observe());
+    const Vec2d error = target_on_plane - spot;
+    out.last_error_mm = error.norm();
+    if (out.last_error_mm <= o.tolerance_mm) {
+      if (o.final_correction) {
+        IDI_ASSIGN_OR_RETURN(out.reading, correct(error));
+      }
+      return out;
+    }
+    IDI_ASSIGN_OR_RETURN(out.reading, correct(error));
+  }
+  return NotConverged("closed-loop aiming: the spot is still " + std::to_string(out.last_error_mm) +
+                      " mm from the target after " + std::to_string(o.max_iterations) + " corrections");
+}
+
+}  // namespace idi::calib

@@ -1,0 +1,90 @@
+#include "shared/calib/acquisition.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "shared/calib/calib_test_util.h"
+
+namespace idi::calib {
+namespace {
+
+TEST(AcquisitionTest, PlannedConfigurationsAimAtTheTargetAwayFromTheWrist) {
+  const ParamSet robot = Rx130Nominal(), laser = LaserNominal();
+  const Vec3d target(500, 4000, 200);
+  PlanOptions o;
+  const auto q = PlanAimConfigurations(robot, laser, target, 20, Rx130JointLimits(), o);
+  ASSERT_TRUE(q.ok()) << q.status().ToString();
+  ASSERT_EQ(q->size(), 20u);
+  for (const Joints& j : *q) {
+    const Line3d l = LaserLineInBase(robot.data(), laser.data(), j.data());
+    EXPECT_LT(DistancePointToLine(l, target), 1e-5);
+    EXPECT_GT(ProjectOntoLine(l, target), o.min_length_mm);
+    EXPECT_GE(std::abs(j[4]), DegToRad(o.wrist_margin_deg) - 1e-9);
+    EXPECT_TRUE(Rx130JointLimits().Contains(j));
+  }
+  // Different draws: the configurations differ.
+  EXPECT_GT(std::abs((*q)[0][0] - (*q)[1][0]) + std::abs((*q)[0][3] - (*q)[1][3]), 1e-3);
+}
+
+TEST(AcquisitionTest, UnreachableTargetsFailClearly) {
+  PlanOptions o;
+  o.max_draws = 20000;
+  const auto q = PlanAimConfigurations(Rx130Nominal(), LaserNominal(), Vec3d(0, 0, 100), 5, Rx130JointLimits(), o);
+  EXPECT_FALSE(q.ok());
+}
+
+TEST(AcquisitionTest, SelectionImprovesTheConditioning) {
+  const ArmModel arm = testing::PerturbedArm(31);
+  const Vec3d point(500, 4000, 200);
+  const RobotCalibrationData pool = testing::ExactRobotData(arm, point, 1000.0, 120, 3);
+  const ParamSet params = PackRobotCalibration(Rx130Nominal(), LaserNominal(), point, ParamSet(RailParamSpecs()));
+  const auto s = SelectForConditioning(pool, params, {}, 40);
+  ASSERT_TRUE(s.ok()) << s.status().ToString();
+  EXPECT_EQ(s->chosen.size(), 80u);
+  int set2 = 0;
+  for (int i : s->chosen) set2 += pool.readings[static_cast<std::size_t>(i)].set == 2;
+  EXPECT_EQ(set2, 40);
+  EXPECT_TRUE(std::isfinite(s->condition_number));
+  EXPECT_LT(s->condition_number, s->condition_number_first);
+}
+
+// The "true" arm differs from the model used for aiming; the camera sees the true spot.
+TEST(AcquisitionTest, ClosedLoopDrivesTheSpotOntoTheTarget) {
+  const ArmModel truth = testing::PerturbedArm(32);
+  const ParamSet robot = Rx130Nominal(), laser = LaserNominal();
+  Rigid3d base_from_wall;  // wall y = 4000 facing the robot: x along base x, y up, z towards the robot
+  base_from_wall.rotation << 1, 0, 0, 0, 0, -1, 0, 1, 0;
+  base_from_wall.translation = Vec3d(0, 4000, 0);
+  // The loop's model of the wall is 1 degree and 15 mm off.
+  Rigid3d approx = base_from_wall;
+  approx.rotation = Eigen::AngleAxisd(DegToRad(1.0), Vec3d(0.3, 0.5, 0.8).normalized()).toRotationMatrix() * approx.rotation;
+  approx.translation += Vec3d(10, -5, 10);
+  Joints current{};
+  std::mt19937 rng(1);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  JointMover move = [&](const Joints& q) -> Result<Joints> {
+    current = QuantizeToEncoders(q);
+    return current;
+  };
+  SpotObserver observe = [&]() -> Result<Vec2d> {
+    const auto s = SpotOnPlane(truth.robot, truth.laser, base_from_wall, current);
+    if (!s) return NotFound("no spot");
+    return Vec2d(s->x() + noise(rng), s->y() + noise(rng));
+  };
+  const Vec2d target(600, 150);
+  const Vec3d target_base = approx * Vec3d(target.x(), target.y(), 0);
+  const auto starts = PlanAimConfigurations(robot, laser, target_base, 5, Rx130JointLimits(), {});
+  ASSERT_TRUE(starts.ok());
+  for (const Joints& s : *starts) {
+    const auto r = AimClosedLoop(robot, laser, approx, target, s, Rx130JointLimits(), move, observe, {});
+    ASSERT_TRUE(r.ok()) << r.status().ToString();
+    const auto true_spot = SpotOnPlane(truth.robot, truth.laser, base_from_wall, r->reading);
+    ASSERT_TRUE(true_spot.has_value());
+    EXPECT_LT((*true_spot - target).norm(), 0.3);  // a few sigma of the camera noise
+    EXPECT_LT(r->iterations, 10);
+  }
+}
+
+}  // namespace
+}  // namespace idi::calib

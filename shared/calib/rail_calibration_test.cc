@@ -1,0 +1,94 @@
+#include "shared/calib/rail_calibration.h"
+
+#include <gtest/gtest.h>
+
+#include "shared/calib/calib_test_util.h"
+#include "shared/calib/evaluation.h"
+
+namespace idi::calib {
+namespace {
+
+using testing::PerturbedArm;
+
+constexpr std::array<double, 4> kTruePsi = {5654.0, 3.0, -2.0, 0.0002};
+
+// Readings where both arms aim exactly at points (R1 frame) from random rail positions.
+std::vector<RailReading> ExactRailData(const ArmModel& a1, const ArmModel& a2, const std::vector<Vec3d>& points, int n,
+                                       unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> rail(0.0, 1500.0);
+  std::vector<RailReading> out;
+  PlanOptions po;
+  po.min_length_mm = 1500;
+  const Rigid3d r1_from_r2 = Rail1FromRail2(kTruePsi.data());
+  for (int i = 0; i < n; ++i) {
+    const Vec3d p = points[static_cast<std::size_t>(i) % points.size()];
+    RailReading r;
+    r.rail1_mm = rail(rng);
+    r.rail2_mm = rail(rng);
+    const Vec3d p1 = RailFromBase(a1.rail.value(kPhiL), a1.rail.value(kPhiM), r.rail1_mm).Inverse() * p;
+    const Vec3d p2 = (r1_from_r2 * RailFromBase(a2.rail.value(kPhiL), a2.rail.value(kPhiM), r.rail2_mm)).Inverse() * p;
+    po.seed = seed + static_cast<unsigned>(i);
+    const auto q1 = PlanAimConfigurations(a1.robot, a1.laser, p1, 1, Rx130JointLimits(), po);
+    const auto q2 = PlanAimConfigurations(a2.robot, a2.laser, p2, 1, Rx130JointLimits(), po);
+    IDI_CHECK(q1.ok() && q2.ok(), "test data: aiming failed");
+    r.q1 = (*q1)[0];
+    r.q2 = (*q2)[0];
+    out.push_back(r);
+  }
+  return out;
+}
+
+const std::vector<Vec3d> kTwoWalls = {{1500, 4000, 500}, {3000, 4000, -600}, {4200, 4000, 900},
+                                      {1800, -3500, 200}, {3500, -3500, -800}, {2800, 500, -1200}};
+const std::vector<Vec3d> kOneWall = {{1500, 4000, 500}, {3000, 4000, -600}, {4200, 4000, 900}, {2200, 4000, -200}};
+
+TEST(RailCalibrationTest, ExactDataRecoversPsiFromAClosedFormStart) {
+  const ArmModel a1 = PerturbedArm(21), a2 = PerturbedArm(22);
+  const auto data = ExactRailData(a1, a2, kTwoWalls, 60, 5);
+  RailCalibrationOptions o;
+  const auto r = CalibrateRail(data, a1, a2, o);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  for (std::size_t k = 0; k < 4; ++k) EXPECT_NEAR(r->psi.value(k), kTruePsi[k], k == 3 ? 1e-9 : 1e-6) << k;
+  // The closed-form start is already close: within a millimetre and a hundredth of a degree.
+  for (std::size_t k = 0; k < 3; ++k) EXPECT_NEAR(r->start_psi[k], kTruePsi[k], 1.0);
+  EXPECT_NEAR(r->start_psi[3], kTruePsi[3], DegToRad(0.01));
+  EXPECT_LT(r->rms_distance_mm, 1e-6);
+  EXPECT_TRUE(r->outliers.empty());
+  // Evaluation (§5.4.4): with the calibrated psi the transferred lines meet robot 2's point.
+  std::array<double, 4> psi;
+  for (std::size_t k = 0; k < 4; ++k) psi[k] = r->psi.value(k);
+  const auto held = ExactRailData(a1, a2, {{2500, 4000, 0}}, 20, 99);
+  const auto good = RailTransferSpread(held, a1, a2, psi);
+  const auto nominal = RailTransferSpread(held, a1, a2, NominalPsi());
+  ASSERT_TRUE(good.ok() && nominal.ok());
+  EXPECT_LT(good->mean_mm, 1e-5);
+  EXPECT_GT(nominal->mean_mm, 1.0);
+}
+
+TEST(RailCalibrationTest, PointsOnOneWallConfoundPsiZAndPsiAlpha) {
+  const ArmModel a1 = PerturbedArm(23), a2 = PerturbedArm(24);
+  RailNoiseModel noise;
+  const auto two = RailCovarianceAt(ExactRailData(a1, a2, kTwoWalls, 60, 6), a1, a2, kTruePsi, noise);
+  const auto one = RailCovarianceAt(ExactRailData(a1, a2, kOneWall, 60, 6), a1, a2, kTruePsi, noise);
+  ASSERT_TRUE(two.ok() && one.ok());
+  auto corr = [](const Eigen::Matrix4d& c) { return c(kPsiZ, kPsiAlpha) / std::sqrt(c(kPsiZ, kPsiZ) * c(kPsiAlpha, kPsiAlpha)); };
+  EXPECT_GT(std::abs(corr(*one)), 0.95);
+  EXPECT_LT(std::abs(corr(*two)), 0.9);
+  EXPECT_GT((*one)(kPsiZ, kPsiZ), 4.0 * (*two)(kPsiZ, kPsiZ));
+}
+
+TEST(RailCalibrationTest, TooFewOrNanReadingsAreRefused) {
+  const ArmModel a1 = PerturbedArm(25), a2 = PerturbedArm(26);
+  auto data = ExactRailData(a1, a2, kTwoWalls, 19, 7);
+  EXPECT_EQ(CalibrateRail(data, a1, a2, {}).status().code(), StatusCode::kInvalidArgument);
+  data = ExactRailData(a1, a2, kTwoWalls, 25, 7);
+  data[3].rail2_mm = std::nan("");
+  data[3].row = 5;
+  const auto r = CalibrateRail(data, a1, a2, {});
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("line 5"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace idi::calib
