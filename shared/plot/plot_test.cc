@@ -1,0 +1,95 @@
+#include "shared/plot/plot.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+namespace idi::plot {
+namespace {
+
+cv::Mat Decode(const std::vector<std::uint8_t>& png) { return cv::imdecode(png, cv::IMREAD_COLOR); }
+
+int CountColor(const cv::Mat& img, Color c) {
+  int n = 0;
+  for (int y = 0; y < img.rows; ++y) {
+    for (int x = 0; x < img.cols; ++x) {
+      const cv::Vec3b p = img.at<cv::Vec3b>(y, x);
+      n += std::abs(p[0] - c.b) < 10 && std::abs(p[1] - c.g) < 10 && std::abs(p[2] - c.r) < 10;
+    }
+  }
+  return n;
+}
+
+TEST(PlotTest, LinePlotOnALogAxisDrawsTheSeries) {
+  Figure f(640, 480);
+  f.SetTitle("cost per iteration");
+  f.x_axis().label = "iteration";
+  f.y_axis().label = "cost";
+  f.y_axis().log = true;
+  std::vector<double> x, y;
+  for (int i = 0; i < 10; ++i) {
+    x.push_back(i);
+    y.push_back(std::pow(10.0, -i));
+  }
+  f.AddLine(x, y, "robot 1", kBlue, Marker::kCircle);
+  const auto png = f.EncodePng();
+  ASSERT_TRUE(png.ok()) << png.status().ToString();
+  const cv::Mat img = Decode(*png);
+  ASSERT_EQ(img.cols, 640);
+  ASSERT_EQ(img.rows, 480);
+  EXPECT_GT(CountColor(img, kBlue), 300);  // the line (and its legend swatch)
+  EXPECT_EQ(CountColor(img, kRed), 0);
+}
+
+TEST(PlotTest, ScatterHistogramAndCircle) {
+  Figure f;
+  f.SetEqualAspect(true);
+  f.AddScatter({-1, 0, 1}, {0, 1, 0}, "nominal", kRed, Marker::kCross);
+  f.AddCircle(0, 0, 1.0, "mean radius", kGreen);
+  const auto png = f.EncodePng();
+  ASSERT_TRUE(png.ok());
+  const cv::Mat img = Decode(*png);
+  EXPECT_GT(CountColor(img, kRed), 10);
+  EXPECT_GT(CountColor(img, kGreen), 100);
+  Figure h;
+  ASSERT_TRUE(h.AddHistogram({0.1, 0.2, 0.2, 0.3, 0.9}, 4, "residuals", kOrange).ok());
+  const auto hp = h.EncodePng();
+  ASSERT_TRUE(hp.ok());
+  EXPECT_GT(CountColor(Decode(*hp), kOrange), 1000);
+}
+
+TEST(PlotTest, HistogramCounts) {
+  const auto h = Histogram({0, 0.5, 1, 1.5, 2, 2, 4}, 4);
+  ASSERT_TRUE(h.ok());
+  EXPECT_EQ(h->edges.size(), 5u);
+  EXPECT_EQ(h->counts, (std::vector<int>{2, 2, 2, 1}));  // [0,1) [1,2) [2,3) [3,4]
+  EXPECT_FALSE(Histogram({1.0, std::nan("")}, 3).ok());
+  EXPECT_FALSE(Histogram({}, 3).ok());
+}
+
+TEST(PlotTest, BadDataIsRefusedNamingTheSeries) {
+  Figure f;
+  EXPECT_FALSE(f.EncodePng().ok());  // empty
+  f.y_axis().log = true;
+  f.AddLine({0, 1}, {1, 0}, "cost", kBlue);
+  const auto r = f.EncodePng();
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("'cost'"), std::string::npos);
+  Figure g;
+  g.AddLine({0, 1, 2}, {1, 2}, "short", kBlue);
+  EXPECT_EQ(g.EncodePng().status().code(), StatusCode::kInvalidArgument);
+}
+
+TEST(PlotTest, SavesAtomically) {
+  Figure f;
+  f.AddLine({0, 1}, {0, 1}, "", kBlue);
+  const std::string path = ::testing::TempDir() + "/plot_test.png";
+  ASSERT_TRUE(f.SavePng(path).ok());
+  EXPECT_FALSE(cv::imread(path).empty());
+  EXPECT_FALSE(f.SavePng("/nonexistent-dir/x.png").ok());
+}
+
+}  // namespace
+}  // namespace idi::plot
