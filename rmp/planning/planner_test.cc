@@ -1,0 +1,242 @@
+#include "rmp/planning/planner.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <deque>
+
+#include "rmp/track/synthetic_observation.h"
+#include "rmp/track/track_model.h"
+#include "rmp/vehicle/camera_rig.h"
+#include "shared/sim/vehicle/vehicle_twin.h"
+
+namespace idi::rmp {
+namespace {
+
+constexpr int64_t kMs = 1'000'000;
+
+// Footprints of two cameras looking ahead and down from above the axle (1.2 m high, 55 deg down,
+// 0.3 m apart, wide lenses): they see the ground from just behind the axle to ~4 m ahead.
+std::vector<std::vector<Vec2d>> RigFootprints() {
+  std::vector<std::vector<Vec2d>> out;
+  for (double side : {1.0, -1.0}) {
+    RigCamera cam;
+    cam.intrinsics.params = {320, 320, 319.5, 239.5, 0, 0, 0, 0, 0};
+    cam.vehicle_from_camera = LookAheadCameraPose(0.0, side * 0.15, 1.2, 0.0, 55.0 * kPi / 180);
+    out.push_back(GroundFootprint(cam, 32.0, 4.0));
+  }
+  return out;
+}
+
+struct LoopResult {
+  double rms = 0, max = 0;
+  double end_distance = 1e9;  // from the track's last point when stopped
+  double visible_fraction = 0;
+  double max_yaw_rate = 0, max_speed = 0;
+  double max_speed_step = 0;
+  bool stopped = false;
+  double time_s = 0;
+};
+
+double ArcLengthOfClosest(const std::vector<Vec2d>& line, const Vec2d& p, double* dist) {
+  double best = 1e300, best_s = 0, s = 0;
+  for (std::size_t i = 1; i < line.size(); ++i) {
+    const Vec2d a = line[i - 1], d = line[i] - a;
+    const double t = std::clamp((p - a).dot(d) / d.squaredNorm(), 0.0, 1.0);
+    const double e = (a + t * d - p).norm();
+    if (e < best) {
+      best = e;
+      best_s = s + t * d.norm();
+    }
+    s += d.norm();
+  }
+  *dist = best;
+  return best_s;
+}
+
+// Closed loop: the vehicle twin, odometry from its wheel encoders and gyro, the ideal perception at
+// 15 Hz (40 ms processing latency), the track model and the planner at 50 Hz.
+LoopResult RunLoop(const SyntheticTrack& track, double cruise, double max_time_s = 60) {
+  sim::VehicleTwinOptions vo;
+  const Vec2d d0 = (track.centre_m[1] - track.centre_m[0]).normalized();
+  vo.start_x_m = track.centre_m[0].x();
+  vo.start_y_m = track.centre_m[0].y();
+  vo.start_yaw_rad = std::atan2(d0.y(), d0.x());
+  vo.left_wheel_scale_error = 0.003;
+  vo.right_wheel_scale_error = -0.002;
+  vo.slip_noise_m_per_sqrt_m = 0.001;
+  sim::VehicleTwin twin(vo);
+  PlannerOptions po;
+  po.cruise_speed_mps = cruise;
+  Planner planner(po);
+  TrackModel model;
+  const auto footprints = RigFootprints();
+  std::mt19937_64 rng(7);
+  SyntheticObservationOptions so;
+  so.noise_m = 0.002;
+
+  // Odometry from the encoders (differential drive) and the history of it for late observations.
+  Pose2 odom{};
+  double last_l = 0, last_r = 0;
+  std::deque<std::pair<int64_t, Pose2>> history;
+  struct Pending {
+    int64_t apply_ns, capture_ns;
+    TrackObservation obs;
+  };
+  std::deque<Pending> pending;
+  LoopResult r;
+  double sum2 = 0;
+  int n = 0, frames = 0, visible = 0;
+  double track_len = PolylineLength(track.centre_m);
+  int64_t stopped_since = -1;
+  double last_cmd_v = 0;
+  for (int64_t t = 0; t < static_cast<int64_t>(max_time_s * 1000) * kMs; t += 20 * kMs) {
+    twin.AdvanceTo(t);
+    const sim::VehicleSensors& sens = twin.sensors();
+    const double dl = sens.left_wheel_m - last_l, dr = sens.right_wheel_m - last_r;
+    last_l = sens.left_wheel_m;
+    last_r = sens.right_wheel_m;
+    const double ds = 0.5 * (dl + dr), dyaw = (dr - dl) / vo.wheel_separation_m;
+    odom = odom * Pose2{ds * std::cos(0.5 * dyaw), ds * std::sin(0.5 * dyaw), dyaw};
+    history.emplace_back(t, odom);
+    while (history.size() > 50) history.pop_front();
+    const sim::VehicleTruth& truth = twin.truth();
+    const Pose2 world_from_vehicle{truth.x_m, truth.y_m, truth.yaw_rad};
+    if (t % (66 * kMs) < 20 * kMs) {  // ~15 Hz camera
+      pending.push_back({t + 40 * kMs, t, SyntheticObservation(track, world_from_vehicle, footprints, t, so, &rng)});
+      // Visibility of the coming track (truth) while following.
+      double dist = 0;
+      const double s_now = ArcLengthOfClosest(track.centre_m, world_from_vehicle.translation(), &dist);
+      if (track_len - s_now > 0.15) {
+        ++frames;
+        const auto obs = pending.back().obs;
+        double ahead_visible = 0;
+        for (const auto& piece : obs.pieces) {
+          for (std::size_t i = 1; i < piece.points_m.size(); ++i) {
+            const Vec2d mid = world_from_vehicle * (0.5 * (piece.points_m[i] + piece.points_m[i - 1]));
+            double dd = 0;
+            if (ArcLengthOfClosest(track.centre_m, mid, &dd) > s_now) ahead_visible += (piece.points_m[i] - piece.points_m[i - 1]).norm();
+          }
+        }
+        if (ahead_visible >= 0.05) ++visible;
+      }
+    }
+    while (!pending.empty() && pending.front().apply_ns <= t) {
+      Pose2 at_capture = odom;
+      for (const auto& [ht, hp] : history) {
+        if (ht == pending.front().capture_ns) at_capture = hp;
+      }
+      EXPECT_TRUE(model.Update(pending.front().obs, at_capture).ok());
+      pending.pop_front();
+    }
+    model.UpdateProgress(odom);
+    PlannerInput in;
+    in.now_ns = t;
+    in.odom_from_vehicle = odom;
+    in.speed_mps = 0.5 * (sens.left_wheel_mps + sens.right_wheel_mps);
+    in.yaw_rate_rps = sens.yaw_rate_rps;
+    in.track = model.Ahead(4.0);
+    in.footprints_m = footprints;
+    const PlanOutput out = planner.Plan(in);
+    twin.Command(t, {out.speed_mps, out.yaw_rate_rps});
+    planner.CommandSent(t, out.speed_mps, out.yaw_rate_rps);
+    r.max_yaw_rate = std::max(r.max_yaw_rate, std::abs(out.yaw_rate_rps));
+    r.max_speed = std::max(r.max_speed, out.speed_mps);
+    r.max_speed_step = std::max(r.max_speed_step, out.speed_mps - last_cmd_v);
+    last_cmd_v = out.speed_mps;
+    double dist = 0;
+    ArcLengthOfClosest(track.centre_m, world_from_vehicle.translation(), &dist);
+    sum2 += dist * dist;
+    ++n;
+    r.max = std::max(r.max, dist);
+    if (out.state == PlanState::kAtEnd && std::abs(truth.speed_mps) < 1e-3) {
+      if (stopped_since < 0) stopped_since = t;
+      if (t - stopped_since > 500 * kMs) {
+        r.stopped = true;
+        r.end_distance = (world_from_vehicle.translation() - track.centre_m.back()).norm();
+        r.time_s = static_cast<double>(t) * 1e-9;
+        break;
+      }
+    } else {
+      stopped_since = -1;
+    }
+  }
+  r.rms = std::sqrt(sum2 / std::max(1, n));
+  r.visible_fraction = frames > 0 ? static_cast<double>(visible) / frames : 0.0;
+  return r;
+}
+
+TEST(PlannerTest, StopsWithoutTrack) {
+  Planner planner;
+  PlannerInput in;
+  const PlanOutput out = planner.Plan(in);
+  EXPECT_TRUE(out.stopped());
+  EXPECT_EQ(out.state, PlanState::kNoTrack);
+}
+
+TEST(PlannerTest, RejectsBadOptions) {
+  PlannerOptions o;
+  EXPECT_TRUE(o.Check().ok());
+  o.max_yaw_rate_rps = 0;
+  EXPECT_NE(o.Check().message().find("max_yaw_rate_rps"), std::string::npos);
+  o = {};
+  o.cruise_speed_mps = 5.0;
+  EXPECT_NE(o.Check().message().find("cruise_speed_mps"), std::string::npos);
+}
+
+TEST(PlannerClosedLoopTest, FollowsAStraightTapeAndStopsAtItsEnd) {
+  const LoopResult r = RunLoop({{{0, 0}, {4, 0}}, {}}, 0.5);
+  EXPECT_TRUE(r.stopped);
+  EXPECT_LT(r.end_distance, 0.1);
+  EXPECT_LT(r.rms, 0.01);
+  EXPECT_LT(r.max, 0.03);
+  EXPECT_EQ(r.visible_fraction, 1.0);
+  EXPECT_LE(r.max_speed, 0.5 + 1e-9);
+}
+
+TEST(PlannerClosedLoopTest, TurnsRightAngledCornersWithinTheErrorBudget) {
+  for (double side : {1.0, -1.0}) {
+    const LoopResult r = RunLoop({{{0, 0}, {2.5, 0}, {2.5, side * 2.5}}, {}}, 0.5);
+    EXPECT_TRUE(r.stopped) << side;
+    EXPECT_LT(r.end_distance, 0.1) << side;
+    EXPECT_LT(r.rms, 0.02) << side;
+    EXPECT_LT(r.max, 0.06) << side;
+    EXPECT_EQ(r.visible_fraction, 1.0) << side;
+    EXPECT_LE(r.max_yaw_rate, PlannerOptions{}.max_yaw_rate_rps + 1e-9);
+  }
+}
+
+TEST(PlannerClosedLoopTest, TurnsA120DegreeCornerAndBridgesAGap) {
+  const double c = std::cos(2 * kPi / 3), s = std::sin(2 * kPi / 3);
+  const LoopResult r = RunLoop({{{0, 0}, {2.5, 0}, {2.5 + 2.5 * c, 2.5 * s}}, {{1.0, 1.5}}}, 0.5);
+  EXPECT_TRUE(r.stopped);
+  EXPECT_LT(r.end_distance, 0.1);
+  EXPECT_LT(r.rms, 0.02);
+  EXPECT_LT(r.max, 0.06);
+  EXPECT_EQ(r.visible_fraction, 1.0);
+}
+
+TEST(PlannerClosedLoopTest, FollowsAnSCurveAtOneMetrePerSecond) {
+  std::vector<Vec2d> pts = {{0, 0}, {1.5, 0}};
+  double heading = 0;
+  Vec2d p(1.5, 0);
+  for (int i = 0; i < 12; ++i) {  // left arc of 12 x 15 deg segments of 0.15 m
+    heading += kPi / 12;
+    p += 0.15 * Vec2d(std::cos(heading), std::sin(heading));
+    pts.push_back(p);
+  }
+  for (int i = 0; i < 12; ++i) {
+    heading -= kPi / 12;
+    p += 0.15 * Vec2d(std::cos(heading), std::sin(heading));
+    pts.push_back(p);
+  }
+  pts.push_back(p + 1.5 * Vec2d(std::cos(heading), std::sin(heading)));
+  const LoopResult r = RunLoop({pts, {}}, 1.0);
+  EXPECT_TRUE(r.stopped);
+  EXPECT_LT(r.end_distance, 0.1);
+  EXPECT_LT(r.rms, 0.04);
+  EXPECT_EQ(r.visible_fraction, 1.0);
+}
+
+}  // namespace
+}  // namespace idi::rmp

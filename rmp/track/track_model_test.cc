@@ -1,0 +1,120 @@
+#include "rmp/track/track_model.h"
+
+#include <gtest/gtest.h>
+
+#include "rmp/track/synthetic_observation.h"
+
+namespace idi::rmp {
+namespace {
+
+// A wide view ahead of the vehicle: 0 .. 3 m forward, +-1.5 m.
+std::vector<std::vector<Vec2d>> WideView() { return {{{-0.05, -1.5}, {3.0, -1.5}, {3.0, 1.5}, {-0.05, 1.5}}}; }
+
+TEST(TrackModelTest, StartsAtTheVehicleAndFollowsItsHeading) {
+  SyntheticTrack track{{{0, 0}, {5, 0}}, {}};
+  TrackModel model;
+  const Pose2 pose{0, 0, 0};
+  auto stats = model.Update(SyntheticObservation(track, pose, WideView(), 0), pose);
+  ASSERT_TRUE(stats.ok());
+  EXPECT_TRUE(stats->initialised);
+  const TrackAhead ahead = model.Ahead();
+  ASSERT_TRUE(ahead.valid());
+  EXPECT_NEAR(ahead.points.front().x(), 0.0, 0.02);
+  EXPECT_GT(ahead.points.back().x(), 2.8);
+  EXPECT_FALSE(ahead.end_known);
+}
+
+TEST(TrackModelTest, RejectsNonFiniteInput) {
+  TrackModel model;
+  TrackObservation obs;
+  obs.pieces.push_back({{{0, 0}, {std::nan(""), 1}}, {false, false}, 0.005});
+  EXPECT_FALSE(model.Update(obs, Pose2{}).ok());
+  EXPECT_FALSE(model.Update(TrackObservation{}, Pose2{0, std::nan(""), 0}).ok());
+  EXPECT_FALSE(model.initialised());
+}
+
+// Drives the vehicle along the true track (straight, heading +x) in 2 cm steps, observing every step.
+void DriveStraight(TrackModel* model, const SyntheticTrack& track, double from_x, double to_x, double odom_bias = 0) {
+  for (double x = from_x; x <= to_x + 1e-9; x += 0.02) {
+    const Pose2 truth{x, 0, 0};
+    const Pose2 odom{x, odom_bias, 0};
+    ASSERT_TRUE(model->Update(SyntheticObservation(track, truth, WideView(), static_cast<int64_t>(x * 1e9)), odom).ok());
+  }
+}
+
+TEST(TrackModelTest, BridgesAGapSeenFromBothSides) {
+  SyntheticTrack track{{{0, 0}, {8, 0}}, {{2.0, 2.8}}};
+  TrackModel model;
+  DriveStraight(&model, track, 0.0, 1.0);
+  const TrackAhead ahead = model.Ahead();
+  ASSERT_TRUE(ahead.valid());
+  // The model runs across the gap to the tape beyond it, the stretch in between marked as a gap.
+  EXPECT_GT(ahead.points.back().x(), 3.9);
+  int gaps = 0;
+  for (std::size_t i = 0; i < ahead.points.size(); ++i) {
+    if (ahead.gap[i]) {
+      ++gaps;
+      EXPECT_GT(ahead.points[i].x(), 1.95);
+      EXPECT_LT(ahead.points[i].x(), 2.85);
+    }
+    EXPECT_NEAR(ahead.points[i].y(), 0.0, 1e-9);
+  }
+  EXPECT_GT(gaps, 50);
+  EXPECT_FALSE(ahead.end_known);
+}
+
+TEST(TrackModelTest, ConfirmsTheEndOnlyWithClearGroundBeyondIt) {
+  SyntheticTrack track{{{0, 0}, {3, 0}}, {}};
+  TrackModel model;
+  // From x = 0 the view reaches 3 m: the end is seen, but no ground beyond it.
+  DriveStraight(&model, track, 0.0, 0.0);
+  EXPECT_FALSE(model.end_known());
+  // Closer, the cameras see more than end_confirm_m beyond the end without tape: it is the end.
+  DriveStraight(&model, track, 0.02, 1.8);
+  EXPECT_TRUE(model.end_known());
+  const TrackAhead ahead = model.Ahead();
+  EXPECT_TRUE(ahead.end_known);
+  EXPECT_NEAR(ahead.points.back().x(), 3.0, 0.02);
+}
+
+TEST(TrackModelTest, IgnoresOtherTapeBesideTheTrack) {
+  // A second tape 0.5 m to the left (the loop coming back) never joins the track.
+  SyntheticTrack track{{{0, 0}, {6, 0}}, {}};
+  SyntheticTrack other{{{6, 0.5}, {0, 0.5}}, {}};
+  TrackModel model;
+  for (double x = 0; x <= 1.0; x += 0.02) {
+    const Pose2 pose{x, 0, 0};
+    TrackObservation obs = SyntheticObservation(track, pose, WideView(), 0);
+    const TrackObservation more = SyntheticObservation(other, pose, WideView(), 0);
+    obs.pieces.insert(obs.pieces.end(), more.pieces.begin(), more.pieces.end());
+    ASSERT_TRUE(model.Update(obs, pose).ok());
+  }
+  for (const TrackSample& s : model.samples()) EXPECT_NEAR(s.xy.y(), 0.0, 1e-9);
+}
+
+TEST(TrackModelTest, FollowsTheNewestViewWhenOdometryDrifts) {
+  // Odometry drifts 3 cm sideways: the track ahead in the model moves with the newest observation,
+  // so relative to the vehicle it stays where the cameras see it.
+  SyntheticTrack track{{{0, 0}, {8, 0}}, {}};
+  TrackModel model;
+  DriveStraight(&model, track, 0.0, 0.5, 0.0);
+  DriveStraight(&model, track, 0.52, 1.0, 0.03);
+  const TrackAhead ahead = model.Ahead(2.0, 0.0);
+  ASSERT_TRUE(ahead.valid());
+  for (const Vec2d& p : ahead.points) EXPECT_NEAR(p.y(), 0.03, 0.005);
+}
+
+TEST(TrackModelTest, DropsAnExtensionTheCamerasNoLongerSee) {
+  TrackModel model;
+  SyntheticTrack long_track{{{0, 0}, {3, 0}}, {}};
+  const Pose2 pose{0, 0, 0};
+  ASSERT_TRUE(model.Update(SyntheticObservation(long_track, pose, WideView(), 0), pose).ok());
+  // The tape really ends at 2 m (the first view was wrong beyond it): after a few frames the model
+  // ends there too.
+  SyntheticTrack short_track{{{0, 0}, {2, 0}}, {}};
+  for (int i = 1; i < 8; ++i) ASSERT_TRUE(model.Update(SyntheticObservation(short_track, pose, WideView(), i), pose).ok());
+  EXPECT_NEAR(model.samples().back().xy.x(), 2.0, 0.02);
+}
+
+}  // namespace
+}  // namespace idi::rmp
