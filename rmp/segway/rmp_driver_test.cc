@@ -332,6 +332,52 @@ TEST(RmpDriverTest, IntegratorResetThatDoesNotTakeFallsBackToASoftwareOffset) {
   EXPECT_EQ(b.driver->odometry().origin_counts().left >> 16, 0xFFFFu);
 }
 
+// Odometry through the whole chain (twin encoders -> integrator frames -> driver) shows the twin's
+// configured scale error and slip noise.
+TEST(RmpDriverOdometryStatisticsTest, ScaleErrorAndSlipNoiseReachTheDriversOdometry) {
+  SimRmpOptions scaled;
+  scaled.vehicle.left_wheel_scale_error = 0.02;
+  scaled.vehicle.right_wheel_scale_error = 0.02;
+  {
+    DriverBench b(scaled);
+    b.StartAndWait();
+    const double x0 = b.rmp.vehicle().truth().x_m;
+    b.Fresh(b.clock.NowNs() + 5000 * kDrvMs, 0.8, 0.0);
+    b.Fresh(b.clock.NowNs() + 1500 * kDrvMs, 0.0, 0.0);  // stopped: odometry and truth compare at rest
+    const double travelled = b.rmp.vehicle().truth().x_m - x0;
+    EXPECT_NEAR(b.driver->odometry().pose().x_m / travelled, 1.02, 0.002);
+  }
+  constexpr int kRuns = 100;
+  constexpr double kSigma = 0.01;  // m per sqrt(m), each wheel
+  double sum = 0.0, sum2 = 0.0, distance = 0.0;
+  for (int run = 0; run < kRuns; ++run) {
+    SimRmpOptions noisy;
+    noisy.vehicle.slip_noise_m_per_sqrt_m = kSigma;
+    noisy.vehicle.seed = 500 + static_cast<uint64_t>(run);
+    noisy.vehicle.step_s = 0.002;
+    DriverBench b(noisy);
+    b.StartAndWait();
+    const double d0 = b.rmp.vehicle().truth().distance_m;
+    b.Fresh(b.clock.NowNs() + 4000 * kDrvMs, 1.0, 0.0);
+    b.Fresh(b.clock.NowNs() + 1500 * kDrvMs, 0.0, 0.0);
+    // Path length, not x: the heading drift that slip causes would shorten x by a few mm.
+    const double travelled = b.rmp.vehicle().truth().distance_m - d0;
+    const double err = b.driver->odometry().pose().distance_m - travelled;
+    sum += err;
+    sum2 += err * err;
+    distance += travelled / kRuns;
+  }
+  // The centre moves by the mean of the wheels: variance sigma^2 * d / 2.
+  const double expected_std = kSigma * std::sqrt(distance / 2.0);
+  const double mean = sum / kRuns;
+  const double std_dev = std::sqrt((sum2 - kRuns * mean * mean) / (kRuns - 1));
+  RecordProperty("odometry_error_std_mm", std::to_string(1000.0 * std_dev));
+  RecordProperty("expected_std_mm", std::to_string(1000.0 * expected_std));
+  RecordProperty("odometry_error_mean_mm", std::to_string(1000.0 * mean));
+  EXPECT_NEAR(std_dev, expected_std, 0.25 * expected_std) << "distance " << distance;
+  EXPECT_NEAR(mean, 0.0, 4.0 * expected_std / std::sqrt(kRuns));
+}
+
 TEST(RmpDriverTest, ShutdownSendsZeroThenFallsSilent) {
   DriverBench b;
   b.StartAndWait();

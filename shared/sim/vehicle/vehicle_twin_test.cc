@@ -169,6 +169,8 @@ TEST(VehicleTwinStatisticsTest, OdometryErrorMatchesScaleErrorAndSlipNoise) {
   for (double e : left_err) mean += e / kRuns;
   for (double e : left_err) var += (e - mean) * (e - mean) / (kRuns - 1);
   const double expected_std = kSigma * std::sqrt(mean_distance);
+  RecordProperty("slip_error_std_mm", std::to_string(1000.0 * std::sqrt(var)));
+  RecordProperty("expected_std_mm", std::to_string(1000.0 * expected_std));
   EXPECT_NEAR(std::sqrt(var), expected_std, 0.15 * expected_std);
   EXPECT_NEAR(mean, 0.0, 4.0 * expected_std / std::sqrt(kRuns));
 }
