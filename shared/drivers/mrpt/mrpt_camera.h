@@ -1,0 +1,46 @@
+// Cameras through MRPT's generic camera sensor (mrpt::hwdrivers::CCameraSensor): FireWire IIDC cameras
+// such as the Basler A602fc of the Biclops head (grabber `dc1394`), plus anything else MRPT grabs from
+// (`opencv`, `ffmpeg`, `image_dir`, and `rawlog`, which replays a recorded MRPT rawlog).
+#pragma once
+
+#include <map>
+#include <memory>
+#include <string>
+
+#include "shared/hal/camera.h"
+#include "shared/hal/clock.h"
+
+namespace idi::drivers {
+
+struct MrptCameraOptions {
+  std::string name = "camera";
+  std::string grabber_type = "dc1394";  // dc1394 | opencv | ffmpeg | image_dir | rawlog
+  // Further CCameraSensor settings, written as `key = value` into its configuration section
+  // (e.g. dc1394_camera_guid, dc1394_framerate, rawlog_file, image_dir_url).
+  std::map<std::string, std::string> settings;
+};
+
+class MrptCamera final : public hal::CameraDevice {
+ public:
+  MrptCamera(MrptCameraOptions options, hal::Clock* clock);
+  ~MrptCamera() override;
+  std::string name() const override { return options_.name; }
+  // DeviceError naming the camera and MRPT's reason when the grabber cannot be opened.
+  Status Start(const hal::CameraSettings& settings) override;
+  Status Stop() override;
+  // Timeout is not enforceable through CCameraSensor (it blocks in the driver); frames are timestamped
+  // on arrival with `clock`.
+  Result<hal::Image> Grab(std::chrono::milliseconds timeout) override;
+  // dc1394 only, and only before Start (sets dc1394_shutter in the grabber's configuration).
+  Status SetExposure(double exposure_us) override;
+
+ private:
+  struct Impl;
+  MrptCameraOptions options_;
+  hal::Clock* clock_;
+  hal::CameraSettings settings_;
+  std::unique_ptr<Impl> impl_;
+  uint64_t sequence_ = 0;
+};
+
+}  // namespace idi::drivers
