@@ -1,0 +1,414 @@
+#include "workcell/app/calibrate_command.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "shared/calib/evaluation.h"
+#include "shared/plot/plot.h"
+#include "shared/sim/workcell/workcell_twin.h"
+#include "workcell/procedures/calibration_files.h"
+#include "workcell/procedures/calibration_procedures.h"
+
+namespace idi::workcell {
+namespace {
+
+struct RobotCommandOptions {
+  std::string observations, method = "translate", out, validate, report, plots;
+  double distance_mm = 0;
+  double spot_sigma_mm = 0.05;
+  double distance_sigma_mm = 0.1;
+  bool sim = false;
+  unsigned seed = 1;
+  int arm = 1;
+  int readings = 540;
+};
+
+struct RtuCommandOptions {
+  std::string observations, robot1, robot2, out, report, plots;
+  double spot_sigma_mm = 0.05;
+  double rail_sigma_mm = 0.1;
+  bool sim = false;
+  unsigned seed = 1;
+  int readings = 500;
+};
+
+nlohmann::json SpreadJson(const calib::SpreadStats& s) {
+  return {{"max_mm", s.max_mm}, {"mean_mm", s.mean_mm}, {"std_mm", s.std_mm}, {"lines", s.projected.size()}};
+}
+
+CellSetup SetupFromTwin(const sim::WorkcellTwin& twin) {
+  CellSetup s;
+  const sim::WorkcellSetup ts = twin.Setup();
+  for (const sim::Wall& w : ts.walls) {
+    s.wall_names.push_back(w.name);
+    s.world_from_wall.push_back(w.world_from_wall);
+  }
+  s.psi = ts.psi;
+  return s;
+}
+
+ArmDevices DevicesFromTwin(sim::WorkcellTwin& twin, int k) {
+  ArmDevices d;
+  d.arm = &twin.arm(k);
+  d.rail = &twin.rail(k);
+  d.laser = &twin.laser(k);
+  d.observe = [&twin, k](int wall) { return twin.ObserveSpot(k, wall); };
+  return d;
+}
+
+sim::WorkcellTwinOptions TwinOptions(unsigned seed, double spot_sigma_mm) {
+  sim::WorkcellTwinOptions o;
+  o.seed = seed;
+  o.spot_sigma_mm = spot_sigma_mm;
+  return o;
+}
+
+Status SavePlots(const std::string& dir, const std::string& prefix, const std::vector<double>& cost,
+                 const std::vector<std::pair<std::string, calib::SpreadStats>>& spreads) {
+  if (dir.empty()) return Status::Ok();
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return IoError(dir + ": cannot create the plot folder: " + ec.message());
+  plot::Figure cf;
+  cf.SetTitle(prefix + ": cost per iteration (Fig. 4.9)");
+  cf.x_axis().label = "iteration";
+  cf.y_axis().label = "cost";
+  cf.y_axis().log = true;
+  std::vector<double> x, y;
+  for (std::size_t i = 0; i < cost.size(); ++i) {
+    x.push_back(static_cast<double>(i));
+    y.push_back(std::max(cost[i], 1e-300));
+  }
+  cf.AddLine(x, y, "1/2 sum of whitened residuals^2", plot::kBlue, plot::Marker::kCircle);
+  IDI_RETURN_IF_ERROR(cf.SavePng(dir + "/" + prefix + "_cost.png"));
+  if (spreads.empty()) return Status::Ok();
+  plot::Figure sf;
+  sf.SetTitle(prefix + ": held-out laser lines on the plane through their closest point (Fig. 4.10)");
+  sf.x_axis().label = "mm";
+  sf.y_axis().label = "mm";
+  sf.SetEqualAspect(true);
+  const std::array<plot::Color, 3> colors = {plot::kRed, plot::kBlue, plot::kGreen};
+  for (std::size_t k = 0; k < spreads.size(); ++k) {
+    std::vector<double> px, py;
+    for (const Vec2d& p : spreads[k].second.projected) {
+      px.push_back(p.x());
+      py.push_back(p.y());
+    }
+    sf.AddScatter(px, py, fmt::format("{} (mean {:.3f} mm)", spreads[k].first, spreads[k].second.mean_mm),
+                  colors[k % colors.size()], k == 0 ? plot::Marker::kCross : plot::Marker::kCircle);
+  }
+  return sf.SavePng(dir + "/" + prefix + "_spread.png");
+}
+
+nlohmann::json RobotReport(const calib::RobotCalibrationResult& r, const calib::RobotCalibrationData& data) {
+  const std::vector<ParamSpec> specs = calib::RobotCalibrationSpecs();
+  std::vector<std::string> names;
+  for (const ParamSpec& s : specs) names.push_back(s.Key());
+  nlohmann::json j;
+  j["method"] = calib::MethodName(data.method);
+  j["distance_mm"] = data.distance_mm;
+  j["readings"] = data.readings.size();
+  j["readings_used"] = r.residuals.readings;
+  j["start"] = r.start;
+  j["restarts"] = r.restarts;
+  j["solver"] = {{"termination", r.summary.termination}, {"iterations", r.summary.iterations},
+                 {"initial_cost", r.summary.initial_cost}, {"final_cost", r.summary.final_cost},
+                 {"time_ms", r.summary.time_ms}};
+  j["cost_per_iteration"] = r.cost_per_iteration;
+  j["residuals"] = {{"rms_miss_mm", r.residuals.rms_miss_mm}, {"median_miss_mm", r.residuals.median_miss_mm},
+                    {"max_miss_mm", r.residuals.max_miss_mm}, {"rms_normalized", r.residuals.rms_normalized},
+                    {"variance_factor", r.residuals.variance_factor}};
+  nlohmann::json out = nlohmann::json::array();
+  for (const calib::OutlierReading& o : r.outliers) {
+    out.push_back({{"reading", o.index}, {"line", o.row}, {"set", o.set}, {"miss_mm", o.miss_mm}, {"sigmas", o.sigmas}});
+  }
+  j["outliers"] = out;
+  nlohmann::json corr = nlohmann::json::array();
+  for (const optim::CorrelatedPair& p : r.identifiability.correlated) {
+    corr.push_back({{"a", names[static_cast<std::size_t>(p.i)]}, {"b", names[static_cast<std::size_t>(p.j)]}, {"correlation", p.correlation}});
+  }
+  nlohmann::json undetermined = nlohmann::json::array();
+  for (int i : r.identifiability.undetermined) undetermined.push_back(names[static_cast<std::size_t>(i)]);
+  std::vector<double> sv(r.identifiability.singular_values.data(),
+                         r.identifiability.singular_values.data() + r.identifiability.singular_values.size());
+  j["identifiability"] = {{"singular_values_scaled", sv},
+                          {"condition_number", r.identifiability.condition_number},
+                          {"condition_number_unscaled", r.identifiability.condition_number_unscaled},
+                          {"rank", r.identifiability.rank},
+                          {"undetermined", undetermined},
+                          {"correlated_above_0_95", corr}};
+  j["params"] = ParamsJson(r.params);
+  return j;
+}
+
+Status RunCalibrateRobot(const RobotCommandOptions& o) {
+  IDI_ASSIGN_OR_RETURN(const calib::TranslationMethod method, calib::ParseMethod(o.method));
+  calib::RobotCalibrationData data;
+  std::vector<std::vector<Joints>> held_out;  // per set of the validation file
+  calib::RobotCalibrationOptions co;
+  co.noise.spot_sigma_mm = o.spot_sigma_mm;
+  co.noise.distance_sigma_mm = o.distance_sigma_mm;
+  std::unique_ptr<sim::WorkcellTwin> twin;
+  nlohmann::json report;
+  const int arm = o.arm - 1;
+  if (o.sim) {
+    twin = std::make_unique<sim::WorkcellTwin>(TwinOptions(o.seed, o.spot_sigma_mm));
+    ArmDevices dev = DevicesFromTwin(*twin, arm);
+    RobotAcquisitionOptions ao;
+    ao.method = method;
+    ao.distance_mm = o.distance_mm > 0 ? o.distance_mm : 1000.0;
+    ao.per_set = o.readings / 2;
+    ao.seed = o.seed;
+    spdlog::info("digital twin (seed {}): calibrating robot {} by the {} method, {} readings", o.seed, o.arm, o.method,
+                 2 * ao.per_set);
+    IDI_ASSIGN_OR_RETURN(const RobotAcquisition acq, AcquireRobotData(dev, arm, SetupFromTwin(*twin), calib::ArmModel{}, ao));
+    data = acq.data;
+    held_out.push_back(acq.held_out);
+    co.noise.plane_normal = acq.plane_normal_in_base;
+    report["acquisition"] = {{"condition_number", acq.selection.condition_number},
+                             {"condition_number_without_selection", acq.selection.condition_number_first},
+                             {"mean_loop_iterations", acq.mean_loop_iterations},
+                             {"loop_failures", acq.loop_failures},
+                             {"held_out", acq.held_out.size()},
+                             {"simulated_time_s", hal::NsToSec(twin->clock().NowNs())}};
+    if (!o.observations.empty()) IDI_RETURN_IF_ERROR(WriteRobotObservations(o.observations, data.readings));
+    if (!o.validate.empty()) {
+      std::vector<calib::AimReading> v;
+      for (const Joints& q : acq.held_out) v.push_back({1, q, 0});
+      IDI_RETURN_IF_ERROR(WriteRobotObservations(o.validate, v));
+    }
+  } else {
+    if (o.observations.empty()) return InvalidArgument("calibrate robot: --observations FILE.csv is required (or --sim)");
+    if (!(o.distance_mm > 0)) return InvalidArgument("calibrate robot: --distance-mm must be a positive distance");
+    IDI_ASSIGN_OR_RETURN(data.readings, ReadRobotObservations(o.observations));
+    data.distance_mm = o.distance_mm;
+    data.method = method;
+    if (!o.validate.empty()) {
+      IDI_ASSIGN_OR_RETURN(const std::vector<calib::AimReading> v, ReadRobotObservations(o.validate));
+      std::map<int, std::vector<Joints>> by_set;
+      for (const calib::AimReading& r : v) by_set[r.set].push_back(r.q);
+      for (auto& [set, q] : by_set) held_out.push_back(q);
+    }
+  }
+  IDI_ASSIGN_OR_RETURN(const calib::RobotCalibrationResult r, calib::CalibrateRobot(data, co));
+  spdlog::info("{}", r.Summary());
+  for (const calib::OutlierReading& out : r.outliers) {
+    spdlog::warn("outlier left out: reading {} (set {}{}) misses the point by {:.3f} mm ({:.1f} sigma)", out.index + 1,
+                 out.set, out.row > 0 ? fmt::format(", line {}", out.row) : "", out.miss_mm, out.sigmas);
+  }
+  if (!r.identifiability.correlated.empty()) {
+    std::vector<std::string> names;
+    for (const ParamSpec& s : calib::RobotCalibrationSpecs()) names.push_back(s.Key());
+    spdlog::info("parameters correlated above 0.95: {}", optim::DescribeCorrelations(r.identifiability, names));
+  }
+  IDI_RETURN_IF_ERROR(WriteRobotCalibration(o.out, r, data));
+  spdlog::info("wrote {}", o.out);
+
+  const nlohmann::json acquisition = report.contains("acquisition") ? report["acquisition"] : nlohmann::json();
+  report = RobotReport(r, data);
+  if (!acquisition.is_null()) report["acquisition"] = acquisition;
+  std::vector<std::pair<std::string, calib::SpreadStats>> spreads;
+  nlohmann::json validation = nlohmann::json::array();
+  for (const std::vector<Joints>& q : held_out) {
+    const calib::ArmModel nominal;
+    auto s_nominal = calib::LaserSpread(calib::LaserLines(nominal.robot, nominal.laser, q));
+    auto s_cal = calib::LaserSpread(calib::LaserLines(r.robot, r.laser, q));
+    if (!s_nominal.ok() || !s_cal.ok()) {
+      spdlog::warn("validation: {}", (s_nominal.ok() ? s_cal : s_nominal).status().message());
+      continue;
+    }
+    nlohmann::json v = {{"readings", q.size()}, {"nominal", SpreadJson(*s_nominal)}, {"calibrated", SpreadJson(*s_cal)}};
+    spdlog::info("held-out spread radius (§4.5.4): nominal max/mean/std {:.3f}/{:.3f}/{:.3f} mm, calibrated {:.3f}/{:.3f}/{:.3f} mm",
+                 s_nominal->max_mm, s_nominal->mean_mm, s_nominal->std_mm, s_cal->max_mm, s_cal->mean_mm, s_cal->std_mm);
+    if (spreads.empty()) {
+      spreads.emplace_back("nominal", *s_nominal);
+      spreads.emplace_back("calibrated", *s_cal);
+    }
+    if (twin) {
+      const auto s_true = calib::LaserSpread(calib::LaserLines(twin->true_robot(arm), twin->true_laser(arm), q));
+      if (s_true.ok()) v["twin_truth"] = SpreadJson(*s_true);
+    }
+    validation.push_back(v);
+  }
+  report["validation"] = validation;
+  if (twin) {
+    // The twin's truth, for the report only: the calibration never saw it.
+    const ParamSet truth = calib::PackRobotCalibration(twin->true_robot(arm), twin->true_laser(arm), r.point_mm, twin->true_rail(arm));
+    nlohmann::json errors;
+    for (std::size_t i = 0; i < kRx130ParamCount + kLaserParamCount; ++i) {
+      errors[truth.spec(i).Key()] = r.params.file_value(i) - truth.file_value(i);
+    }
+    errors["phi_l_deg"] = RadToDeg(r.rail.value(kPhiL) - twin->true_rail(arm).value(kPhiL));
+    errors["phi_m_deg"] = RadToDeg(r.rail.value(kPhiM) - twin->true_rail(arm).value(kPhiM));
+    report["twin_truth_errors"] = errors;
+  }
+  if (!o.report.empty()) {
+    IDI_RETURN_IF_ERROR(WriteJson(o.report, report));
+    spdlog::info("wrote {}", o.report);
+  }
+  return SavePlots(o.plots, fmt::format("robot{}", o.arm), r.cost_per_iteration, spreads);
+}
+
+// Robot k's model for the rail calibration: from its file, or (--sim) calibrated in the twin first.
+Result<calib::ArmModel> ArmForRtu(const std::string& file, bool sim, sim::WorkcellTwin* twin, int k, unsigned seed,
+                                  double spot_sigma_mm) {
+  if (!file.empty() && (!sim || std::filesystem::exists(file))) return LoadRobotCalibration(file);
+  if (!sim) return InvalidArgument(fmt::format("calibrate rtu: --robot{} FILE.yaml is required (or --sim)", k + 1));
+  ArmDevices dev = DevicesFromTwin(*twin, k);
+  RobotAcquisitionOptions ao;
+  ao.seed = seed + static_cast<unsigned>(k) * 101u;
+  ao.held_out = 0;
+  spdlog::info("digital twin: calibrating robot {} first (chapter 4)", k + 1);
+  IDI_ASSIGN_OR_RETURN(const RobotAcquisition acq, AcquireRobotData(dev, k, SetupFromTwin(*twin), calib::ArmModel{}, ao));
+  calib::RobotCalibrationOptions co;
+  co.noise.spot_sigma_mm = spot_sigma_mm;
+  co.noise.plane_normal = acq.plane_normal_in_base;
+  IDI_ASSIGN_OR_RETURN(const calib::RobotCalibrationResult r, calib::CalibrateRobot(acq.data, co));
+  spdlog::info("robot {}: {}", k + 1, r.Summary());
+  if (!file.empty()) {
+    IDI_RETURN_IF_ERROR(WriteRobotCalibration(file, r, acq.data));
+    spdlog::info("wrote {}", file);
+  }
+  calib::ArmModel m;
+  m.robot = r.robot;
+  m.laser = r.laser;
+  m.rail = r.rail;
+  return m;
+}
+
+Status RunCalibrateRtu(const RtuCommandOptions& o) {
+  std::unique_ptr<sim::WorkcellTwin> twin;
+  if (o.sim) twin = std::make_unique<sim::WorkcellTwin>(TwinOptions(o.seed, o.spot_sigma_mm));
+  IDI_ASSIGN_OR_RETURN(const calib::ArmModel arm1, ArmForRtu(o.robot1, o.sim, twin.get(), 0, o.seed, o.spot_sigma_mm));
+  IDI_ASSIGN_OR_RETURN(const calib::ArmModel arm2, ArmForRtu(o.robot2, o.sim, twin.get(), 1, o.seed, o.spot_sigma_mm));
+  std::vector<calib::RailReading> readings, held_out;
+  nlohmann::json acquisition;
+  if (o.sim) {
+    ArmDevices d1 = DevicesFromTwin(*twin, 0), d2 = DevicesFromTwin(*twin, 1);
+    const CellSetup setup = SetupFromTwin(*twin);
+    RailAcquisitionOptions ao;
+    ao.readings = o.readings;
+    ao.seed = o.seed;
+    IDI_ASSIGN_OR_RETURN(const RailAcquisition acq, AcquireRailData(d1, d2, setup, arm1, arm2, ao));
+    readings = acq.readings;
+    acquisition = {{"points", acq.points_world.size()},
+                   {"point_walls", acq.point_walls},
+                   {"condition_number", acq.condition_number},
+                   {"condition_number_points_on_one_wall", acq.condition_number_one_wall},
+                   {"loop_failures", acq.loop_failures}};
+    RailAcquisitionOptions ho;
+    ho.readings = 40;
+    ho.points = 2;
+    ho.walls = {0};
+    ho.seed = o.seed + 17u;
+    IDI_ASSIGN_OR_RETURN(const RailAcquisition held, AcquireRailData(d1, d2, setup, arm1, arm2, ho));
+    // One held-out point: the readings of the first chosen point.
+    for (std::size_t i = 0; i < held.readings.size(); i += 2) held_out.push_back(held.readings[i]);
+    if (!o.observations.empty()) IDI_RETURN_IF_ERROR(WriteRailObservations(o.observations, readings));
+  } else {
+    if (o.observations.empty()) return InvalidArgument("calibrate rtu: --observations FILE.csv is required (or --sim)");
+    IDI_ASSIGN_OR_RETURN(readings, ReadRailObservations(o.observations));
+  }
+  calib::RailCalibrationOptions co;
+  co.noise.spot_sigma_mm = o.spot_sigma_mm;
+  co.noise.rail_sigma_mm = o.rail_sigma_mm;
+  IDI_ASSIGN_OR_RETURN(const calib::RailCalibrationResult r, calib::CalibrateRail(readings, arm1, arm2, co));
+  spdlog::info("{}", r.Summary());
+  IDI_RETURN_IF_ERROR(WriteRailCalibration(o.out, r));
+  spdlog::info("wrote {}", o.out);
+  nlohmann::json report;
+  report["readings"] = readings.size();
+  report["readings_used"] = r.readings_used;
+  report["outliers"] = r.outliers;
+  report["start"] = r.start;
+  report["solver"] = {{"termination", r.summary.termination}, {"iterations", r.summary.iterations}, {"time_ms", r.summary.time_ms}};
+  report["cost_per_iteration"] = r.cost_per_iteration;
+  report["rms_distance_mm"] = r.rms_distance_mm;
+  report["rms_normalized"] = r.rms_normalized;
+  report["variance_factor"] = r.variance_factor;
+  report["condition_number"] = r.identifiability.condition_number;
+  report["params"] = ParamsJson(r.psi);
+  if (!acquisition.is_null()) report["acquisition"] = acquisition;
+  std::vector<std::pair<std::string, calib::SpreadStats>> spreads;
+  if (!held_out.empty()) {
+    std::array<double, 4> psi;
+    for (std::size_t k = 0; k < 4; ++k) psi[k] = r.psi.value(k);
+    const auto s_nom = calib::RailTransferSpread(held_out, arm1, arm2, calib::NominalPsi());
+    const auto s_cal = calib::RailTransferSpread(held_out, arm1, arm2, psi);
+    if (s_nom.ok() && s_cal.ok()) {
+      report["validation"] = {{"nominal", SpreadJson(*s_nom)}, {"calibrated", SpreadJson(*s_cal)}};
+      spdlog::info("held-out transfer spread (§5.4.4): nominal psi mean {:.3f} mm, calibrated {:.3f} mm", s_nom->mean_mm,
+                   s_cal->mean_mm);
+      spreads = {{"nominal psi", *s_nom}, {"calibrated psi", *s_cal}};
+    }
+  }
+  if (twin) {
+    nlohmann::json err;
+    for (std::size_t k = 0; k < 4; ++k) {
+      err[r.psi.spec(k).Key()] = ToFileUnits(r.psi.spec(k).unit, r.psi.value(k) - twin->true_psi()[k]);
+    }
+    report["twin_truth_errors"] = err;
+  }
+  if (!o.report.empty()) {
+    IDI_RETURN_IF_ERROR(WriteJson(o.report, report));
+    spdlog::info("wrote {}", o.report);
+  }
+  return SavePlots(o.plots, "rtu", r.cost_per_iteration, spreads);
+}
+
+}  // namespace
+
+void AddCalibrateCommand(CliApp& cli) {
+  CLI::App* cal = cli.app.add_subcommand("calibrate", "ViCKi calibration of the arms (chapter 4) and the rail (chapter 5)");
+  cal->require_subcommand(1);
+
+  auto ro = std::make_shared<RobotCommandOptions>();
+  CLI::App* robot = cli.AddCommand(cal, "robot",
+                                   "calibrate an RX-130 with its laser tool from joint readings aimed at a fixed point",
+                                   [ro] { return RunCalibrateRobot(*ro); });
+  robot->add_option("--observations", ro->observations,
+                    "CSV 'set,j1_deg,...,j6_deg' (set 1/2: before/after the translation, or first/second point); "
+                    "with --sim: where to save the acquired readings");
+  robot->add_option("--distance-mm", ro->distance_mm, "the known distance D: rail move or spacing of the two points");
+  robot->add_option("--method", ro->method, "translate (rail move by D) or two-points (second point D away)")
+      ->check(CLI::IsMember({"translate", "two-points"}))
+      ->capture_default_str();
+  robot->add_option("--out", ro->out, "result YAML (written atomically)")->required();
+  robot->add_option("--validate", ro->validate,
+                    "held-out readings (same CSV) aimed at one point per set: spread before/after (§4.5.4); "
+                    "with --sim: where to save them");
+  robot->add_option("--report", ro->report, "JSON report");
+  robot->add_option("--plots", ro->plots, "folder for PNG plots (cost per iteration, held-out spread)");
+  robot->add_option("--spot-sigma-mm", ro->spot_sigma_mm, "spot noise on the wall per axis (noise model; twin camera)")
+      ->capture_default_str();
+  robot->add_option("--distance-sigma-mm", ro->distance_sigma_mm, "std of D (rail repeatability)")->capture_default_str();
+  robot->add_flag("--sim", ro->sim, "run the whole procedure, acquisition included, in the digital twin");
+  robot->add_option("--seed", ro->seed, "digital twin seed")->capture_default_str();
+  robot->add_option("--arm", ro->arm, "which robot (--sim)")->check(CLI::Range(1, 2))->capture_default_str();
+  robot->add_option("--readings", ro->readings, "readings to acquire (--sim), both sets")
+      ->check(CLI::Range(20, 100000))
+      ->capture_default_str();
+
+  auto to = std::make_shared<RtuCommandOptions>();
+  CLI::App* rtu = cli.AddCommand(cal, "rtu", "calibrate the robot-to-robot transform on the rail from both lasers on one point",
+                                 [to] { return RunCalibrateRtu(*to); });
+  rtu->add_option("--observations", to->observations,
+                  "CSV 'r1_j1_deg..r1_j6_deg,r1_rail_mm,r2_j1_deg..r2_j6_deg,r2_rail_mm'; with --sim: where to save them");
+  rtu->add_option("--robot1", to->robot1, "robot 1's calibration (calibrate robot output); with --sim: made if missing");
+  rtu->add_option("--robot2", to->robot2, "robot 2's calibration; with --sim: made if missing");
+  rtu->add_option("--out", to->out, "result YAML (psi_x_mm, psi_y_mm, psi_z_mm, psi_alpha_deg with std)")->required();
+  rtu->add_option("--report", to->report, "JSON report");
+  rtu->add_option("--plots", to->plots, "folder for PNG plots");
+  rtu->add_option("--spot-sigma-mm", to->spot_sigma_mm, "spot noise per axis")->capture_default_str();
+  rtu->add_option("--rail-sigma-mm", to->rail_sigma_mm, "rail repeatability (std)")->capture_default_str();
+  rtu->add_flag("--sim", to->sim, "run the whole procedure in the digital twin");
+  rtu->add_option("--seed", to->seed, "digital twin seed")->capture_default_str();
+  rtu->add_option("--readings", to->readings, "readings to acquire (--sim)")->check(CLI::Range(20, 100000))->capture_default_str();
+}
+
+}  // namespace idi::workcell

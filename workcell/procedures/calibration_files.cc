@@ -1,0 +1,215 @@
+#include "workcell/procedures/calibration_files.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "shared/runtime/param_file.h"
+#include "shared/util/atomic_file.h"
+
+namespace idi::workcell {
+namespace {
+
+std::string Trim(std::string s) {
+  while (!s.empty() && (s.back() == '\r' || s.back() == ' ' || s.back() == '\t')) s.pop_back();
+  std::size_t i = 0;
+  while (i < s.size() && (s[i] == ' ' || s[i] == '\t')) ++i;
+  return s.substr(i);
+}
+
+std::vector<std::string> Split(const std::string& line) {
+  std::vector<std::string> out;
+  std::stringstream ss(line);
+  std::string item;
+  while (std::getline(ss, item, ',')) out.push_back(Trim(item));
+  if (!line.empty() && line.back() == ',') out.emplace_back();
+  return out;
+}
+
+// Rows of numbers of a CSV with exactly `header`; each row with its line number.
+Result<std::vector<std::pair<int, std::vector<double>>>> ReadCsv(const std::string& path, const std::string& header) {
+  IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(path));
+  std::stringstream ss(text);
+  std::string line;
+  int line_no = 0;
+  std::vector<std::string> columns;
+  std::vector<std::pair<int, std::vector<double>>> rows;
+  while (std::getline(ss, line)) {
+    ++line_no;
+    line = Trim(line);
+    if (line.empty()) continue;
+    if (columns.empty()) {
+      if (line != header) {
+        return ParseError(path + ":" + std::to_string(line_no) + ": expected the header '" + header + "', got '" +
+                          line.substr(0, 200) + "'");
+      }
+      columns = Split(line);
+      continue;
+    }
+    const std::vector<std::string> cells = Split(line);
+    if (cells.size() != columns.size()) {
+      return ParseError(path + ":" + std::to_string(line_no) + ": expected " + std::to_string(columns.size()) +
+                        " values, got " + std::to_string(cells.size()));
+    }
+    std::vector<double> values;
+    for (std::size_t c = 0; c < cells.size(); ++c) {
+      const char* begin = cells[c].c_str();
+      char* end = nullptr;
+      const double v = std::strtod(begin, &end);
+      if (cells[c].empty() || end != begin + cells[c].size() || !std::isfinite(v)) {
+        return ParseError(path + ":" + std::to_string(line_no) + ": column '" + columns[c] + "': '" +
+                          cells[c].substr(0, 40) + "' is not a finite number");
+      }
+      values.push_back(v);
+    }
+    rows.emplace_back(line_no, std::move(values));
+  }
+  if (columns.empty()) return ParseError(path + ": empty file (expected the header '" + header + "')");
+  return rows;
+}
+
+std::string Num(double v) {
+  std::ostringstream s;
+  s.precision(12);
+  s << v;
+  return s.str();
+}
+
+void EmitStats(YAML::Emitter& e, const std::vector<std::pair<std::string, double>>& stats) {
+  e << YAML::Key << "statistics" << YAML::Value << YAML::BeginMap;
+  for (const auto& [k, v] : stats) e << YAML::Key << k << YAML::Value << v;
+  e << YAML::EndMap;
+}
+
+}  // namespace
+
+Result<std::vector<calib::AimReading>> ReadRobotObservations(const std::string& path) {
+  IDI_ASSIGN_OR_RETURN(const auto rows, ReadCsv(path, kRobotCsvHeader));
+  std::vector<calib::AimReading> out;
+  for (const auto& [line, v] : rows) {
+    if (v[0] != 1.0 && v[0] != 2.0) {
+      return ParseError(path + ":" + std::to_string(line) + ": column 'set' must be 1 or 2, got " + Num(v[0]));
+    }
+    calib::AimReading r;
+    r.set = static_cast<int>(v[0]);
+    r.q = JointsFromDeg({v[1], v[2], v[3], v[4], v[5], v[6]});
+    r.row = line;
+    out.push_back(r);
+  }
+  return out;
+}
+
+Status WriteRobotObservations(const std::string& path, const std::vector<calib::AimReading>& readings) {
+  std::ostringstream s;
+  s.precision(12);
+  s << kRobotCsvHeader << "\n";
+  for (const calib::AimReading& r : readings) {
+    s << r.set;
+    for (double d : JointsToDeg(r.q)) s << "," << d;
+    s << "\n";
+  }
+  return WriteFileAtomically(path, s.str());
+}
+
+Result<std::vector<calib::RailReading>> ReadRailObservations(const std::string& path) {
+  IDI_ASSIGN_OR_RETURN(const auto rows, ReadCsv(path, kRailCsvHeader));
+  std::vector<calib::RailReading> out;
+  for (const auto& [line, v] : rows) {
+    calib::RailReading r;
+    r.q1 = JointsFromDeg({v[0], v[1], v[2], v[3], v[4], v[5]});
+    r.rail1_mm = v[6];
+    r.q2 = JointsFromDeg({v[7], v[8], v[9], v[10], v[11], v[12]});
+    r.rail2_mm = v[13];
+    r.row = line;
+    out.push_back(r);
+  }
+  return out;
+}
+
+Status WriteRailObservations(const std::string& path, const std::vector<calib::RailReading>& readings) {
+  std::ostringstream s;
+  s.precision(12);
+  s << kRailCsvHeader << "\n";
+  for (const calib::RailReading& r : readings) {
+    bool first = true;
+    for (double d : JointsToDeg(r.q1)) {
+      s << (first ? "" : ",") << d;
+      first = false;
+    }
+    s << "," << r.rail1_mm;
+    for (double d : JointsToDeg(r.q2)) s << "," << d;
+    s << "," << r.rail2_mm << "\n";
+  }
+  return WriteFileAtomically(path, s.str());
+}
+
+Status WriteRobotCalibration(const std::string& path, const calib::RobotCalibrationResult& r,
+                             const calib::RobotCalibrationData& data) {
+  YAML::Emitter e;
+  e.SetDoublePrecision(12);
+  e << YAML::BeginMap;
+  e << YAML::Key << "model" << YAML::Value << "rx130-laser-vicki";
+  e << YAML::Key << "method" << YAML::Value << calib::MethodName(data.method);
+  e << YAML::Key << "distance_mm" << YAML::Value << data.distance_mm;
+  EmitParamSet(e, r.params);
+  EmitStats(e, {{"readings", static_cast<double>(data.readings.size())},
+                {"readings_used", static_cast<double>(r.residuals.readings)},
+                {"outliers", static_cast<double>(r.outliers.size())},
+                {"rms_miss_mm", r.residuals.rms_miss_mm},
+                {"median_miss_mm", r.residuals.median_miss_mm},
+                {"max_miss_mm", r.residuals.max_miss_mm},
+                {"rms_normalized", r.residuals.rms_normalized},
+                {"variance_factor", r.residuals.variance_factor},
+                {"condition_number", r.identifiability.condition_number},
+                {"iterations", static_cast<double>(r.summary.iterations)},
+                {"restarts", static_cast<double>(r.restarts)}});
+  e << YAML::EndMap;
+  if (!e.good()) return Internal(path + ": YAML emitter: " + e.GetLastError());
+  return WriteFileAtomically(path, std::string(e.c_str()) + "\n");
+}
+
+Result<calib::ArmModel> LoadRobotCalibration(const std::string& path) {
+  ParamFileOptions o;
+  o.extra_keys = {"model", "comment", "method", "distance_mm", "statistics"};
+  IDI_ASSIGN_OR_RETURN(const ParamSet p, LoadParamFile(path, calib::RobotCalibrationSpecs(), o));
+  calib::ArmModel m;
+  m.robot = p.Slice(0, kRx130ParamCount);
+  m.laser = p.Slice(kRx130ParamCount, kLaserParamCount);
+  m.rail = p.Slice(kRx130ParamCount + kLaserParamCount + 3, kRailParamCount);
+  return m;
+}
+
+Status WriteRailCalibration(const std::string& path, const calib::RailCalibrationResult& r) {
+  YAML::Emitter e;
+  e.SetDoublePrecision(12);
+  e << YAML::BeginMap;
+  e << YAML::Key << "model" << YAML::Value << "robot-to-robot";
+  EmitParamSet(e, r.psi);
+  EmitStats(e, {{"readings_used", static_cast<double>(r.readings_used)},
+                {"outliers", static_cast<double>(r.outliers.size())},
+                {"rms_distance_mm", r.rms_distance_mm},
+                {"rms_normalized", r.rms_normalized},
+                {"variance_factor", r.variance_factor},
+                {"condition_number", r.identifiability.condition_number},
+                {"iterations", static_cast<double>(r.summary.iterations)}});
+  e << YAML::EndMap;
+  if (!e.good()) return Internal(path + ": YAML emitter: " + e.GetLastError());
+  return WriteFileAtomically(path, std::string(e.c_str()) + "\n");
+}
+
+nlohmann::json ParamsJson(const ParamSet& set) {
+  nlohmann::json j = nlohmann::json::object();
+  for (std::size_t i = 0; i < set.size(); ++i) {
+    nlohmann::json v = {{"value", set.file_value(i)}};
+    if (!std::isnan(set.stddev(i))) v["std"] = std::isfinite(set.stddev(i)) ? nlohmann::json(set.file_stddev(i)) : nlohmann::json(nullptr);
+    j[set.spec(i).Key()] = v;
+  }
+  return j;
+}
+
+Status WriteJson(const std::string& path, const nlohmann::json& j) { return WriteFileAtomically(path, j.dump(2) + "\n"); }
+
+}  // namespace idi::workcell

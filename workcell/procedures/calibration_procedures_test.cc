@@ -1,0 +1,157 @@
+// The ViCKi procedures end to end in the digital twin, and `idi-workcell calibrate` on files.
+#include "workcell/procedures/calibration_procedures.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "shared/calib/evaluation.h"
+#include "shared/sim/workcell/workcell_twin.h"
+#include "workcell/app/calibrate_command.h"
+#include "workcell/procedures/calibration_files.h"
+
+namespace idi::workcell {
+namespace {
+
+CellSetup TwinCellSetup(const sim::WorkcellTwin& twin) {
+  CellSetup s;
+  for (const sim::Wall& w : twin.Setup().walls) {
+    s.wall_names.push_back(w.name);
+    s.world_from_wall.push_back(w.world_from_wall);
+  }
+  return s;
+}
+
+ArmDevices Devices(sim::WorkcellTwin& twin, int k) {
+  return {&twin.arm(k), &twin.rail(k), &twin.laser(k), [&twin, k](int w) { return twin.ObserveSpot(k, w); }};
+}
+
+TEST(CalibrationProceduresTest, RobotAcquisitionAndCalibrationInTheTwin) {
+  sim::WorkcellTwin twin({});
+  ArmDevices dev = Devices(twin, 0);
+  RobotAcquisitionOptions o;
+  o.per_set = 75;
+  o.held_out = 30;
+  const auto acq = AcquireRobotData(dev, 0, TwinCellSetup(twin), calib::ArmModel{}, o);
+  ASSERT_TRUE(acq.ok()) << acq.status().ToString();
+  EXPECT_EQ(acq->data.readings.size() + static_cast<std::size_t>(acq->loop_failures) + acq->held_out.size(), 180u);
+  EXPECT_NEAR(acq->data.distance_mm, 1000.0, 1e-9);  // the rail readings' difference
+  EXPECT_TRUE(std::isfinite(acq->selection.condition_number));
+  EXPECT_LT(acq->mean_loop_iterations, 10.0);
+  calib::RobotCalibrationOptions co;
+  co.noise.plane_normal = acq->plane_normal_in_base;
+  const auto r = calib::CalibrateRobot(acq->data, co);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  // Against the twin's truth: every parameter within 5 reported std (the std includes the rail's
+  // repeatability acting on the scale).
+  const ParamSet truth = calib::PackRobotCalibration(twin.true_robot(0), twin.true_laser(0), r->point_mm, twin.true_rail(0));
+  for (std::size_t i = 0; i < kRx130ParamCount + kLaserParamCount; ++i) {
+    EXPECT_LT(std::abs(r->params.value(i) - truth.value(i)), 5.0 * r->params.stddev(i)) << truth.spec(i).Key();
+  }
+  EXPECT_GT(r->residuals.variance_factor, 0.5);
+  EXPECT_LT(r->residuals.variance_factor, 2.0);
+  // §4.5.4 on the held-out readings: calibrated lines meet far better than nominal ones.
+  const calib::ArmModel nominal;
+  const auto before = calib::LaserSpread(calib::LaserLines(nominal.robot, nominal.laser, acq->held_out));
+  const auto after = calib::LaserSpread(calib::LaserLines(r->robot, r->laser, acq->held_out));
+  ASSERT_TRUE(before.ok() && after.ok());
+  EXPECT_GT(before->mean_mm, 5.0 * after->mean_mm);
+}
+
+TEST(CalibrationProceduresTest, RailAcquisitionChoosesPointsOnMoreThanOneWall) {
+  sim::WorkcellTwinOptions to;
+  to.seed = 3;
+  sim::WorkcellTwin twin(to);
+  ArmDevices d1 = Devices(twin, 0), d2 = Devices(twin, 1);
+  calib::ArmModel a1, a2;  // the true arms: this test is about the rail
+  a1.robot = twin.true_robot(0);
+  a1.laser = twin.true_laser(0);
+  a1.rail = twin.true_rail(0);
+  a2.robot = twin.true_robot(1);
+  a2.laser = twin.true_laser(1);
+  a2.rail = twin.true_rail(1);
+  RailAcquisitionOptions o;
+  o.readings = 60;
+  o.points = 4;
+  const auto acq = AcquireRailData(d1, d2, TwinCellSetup(twin), a1, a2, o);
+  ASSERT_TRUE(acq.ok()) << acq.status().ToString();
+  EXPECT_GE(acq->readings.size(), 55u);
+  std::set<int> walls(acq->point_walls.begin(), acq->point_walls.end());
+  EXPECT_GE(walls.size(), 2u);
+  EXPECT_LT(acq->condition_number, acq->condition_number_one_wall);
+  const auto r = calib::CalibrateRail(acq->readings, a1, a2, {});
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  for (std::size_t k = 0; k < 4; ++k) {
+    EXPECT_LT(std::abs(r->psi.value(k) - twin.true_psi()[k]), 5.0 * r->psi.stddev(k)) << k;
+  }
+}
+
+class CalibrateCommandTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::path(::testing::TempDir()) / "calibrate_command_test";
+    std::filesystem::remove_all(dir_);
+    std::filesystem::create_directories(dir_);
+  }
+  int Run(std::vector<std::string> args) {
+    CliApp cli("test", "idi-workcell");
+    AddCalibrateCommand(cli);
+    args.insert(args.begin(), "idi-workcell");
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    return RunCli(cli, static_cast<int>(argv.size()), argv.data());
+  }
+  std::string P(const std::string& name) const { return (dir_ / name).string(); }
+  std::filesystem::path dir_;
+};
+
+TEST_F(CalibrateCommandTest, SimRunWritesFilesThatTheFileRunReproduces) {
+  ASSERT_EQ(Run({"calibrate", "robot", "--sim", "--readings", "150", "--observations", P("obs.csv"), "--validate",
+                 P("val.csv"), "--out", P("robot.yaml"), "--report", P("report.json"), "--plots", P("plots"), "-q"}),
+            0);
+  for (const char* f : {"obs.csv", "val.csv", "robot.yaml", "report.json", "plots/robot1_cost.png", "plots/robot1_spread.png"}) {
+    EXPECT_TRUE(std::filesystem::exists(P(f))) << f;
+  }
+  std::ifstream in(P("report.json"));
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j["method"], "translate");
+  EXPECT_EQ(j["identifiability"]["singular_values_scaled"].size(), 27u);
+  EXPECT_TRUE(j["params"].contains("alpha2_deg"));
+  EXPECT_TRUE(j["params"]["point_x_mm"].contains("std"));
+  EXPECT_GT(j["validation"][0]["nominal"]["mean_mm"].get<double>(), j["validation"][0]["calibrated"]["mean_mm"].get<double>());
+  // The YAML loads as an arm model, and the saved observations calibrate again from the file.
+  const auto arm = LoadRobotCalibration(P("robot.yaml"));
+  ASSERT_TRUE(arm.ok()) << arm.status().ToString();
+  EXPECT_EQ(Run({"calibrate", "robot", "--observations", P("obs.csv"), "--distance-mm", "1000", "--method", "translate",
+                 "--out", P("robot2.yaml"), "--validate", P("val.csv"), "-q"}),
+            0);
+  const auto again = LoadRobotCalibration(P("robot2.yaml"));
+  ASSERT_TRUE(again.ok());
+  // Same readings, same answer, apart from the noise model's plane (the file run assumes the noise
+  // perpendicular to the beam): far inside the standard deviations.
+  for (std::size_t i = 0; i < arm->robot.size(); ++i) {
+    EXPECT_NEAR(arm->robot.value(i), again->robot.value(i), 0.5 * arm->robot.stddev(i) + 1e-12) << i;
+  }
+}
+
+TEST_F(CalibrateCommandTest, BadFilesFailWithExitCode2) {
+  {
+    std::ofstream f(P("bad.csv"));
+    f << "set,j1_deg,j2_deg,j3_deg,j4_deg,j5_deg,j6_deg\n1,0,0,0,0,0\n";
+  }
+  EXPECT_EQ(Run({"calibrate", "robot", "--observations", P("bad.csv"), "--distance-mm", "1000", "--out", P("x.yaml"), "-q"}), 2);
+  {
+    std::ofstream f(P("few.csv"));
+    f << "set,j1_deg,j2_deg,j3_deg,j4_deg,j5_deg,j6_deg\n";
+    for (int i = 0; i < 40; ++i) f << (i % 2 + 1) << ",10,-40,80,0,30,0\n";
+  }
+  EXPECT_EQ(Run({"calibrate", "robot", "--observations", P("few.csv"), "--distance-mm", "1000", "--out", P("x.yaml"), "-q"}), 2);
+  EXPECT_FALSE(std::filesystem::exists(P("x.yaml")));
+  EXPECT_EQ(Run({"calibrate", "robot", "--observations", P("missing.csv"), "--distance-mm", "1000", "--out", P("x.yaml"), "-q"}), 2);
+  EXPECT_EQ(Run({"calibrate", "rtu", "--observations", P("few.csv"), "--out", P("x.yaml"), "-q"}), 2);
+}
+
+}  // namespace
+}  // namespace idi::workcell
