@@ -5,7 +5,7 @@
 // Wire format: standard 11-bit ids, DLC 8, every 16-bit slot big-endian (slot k = bytes 2k, 2k+1);
 // 32-bit integrators are word-swapped: value = (slot1 << 16) | slot0.
 //
-// Frame frame of reference: decoded values use x forward, y left, yaw counter-clockwise positive
+// Frame of reference: decoded values use x forward, y left, yaw counter-clockwise positive
 // (REP-103). The RMP reports clockwise yaw rate as positive (Player negates it), so the yaw-rate and
 // integrated-yaw signs are options; so is the turn command's sign (libsegwayrmp: positive turns left).
 #pragma once
