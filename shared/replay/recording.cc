@@ -1,0 +1,136 @@
+#include "shared/replay/recording.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+
+#include "shared/util/atomic_file.h"
+
+namespace idi {
+namespace fs = std::filesystem;
+
+namespace {
+
+nlohmann::json HeaderJson(const RecordingHeader& h) {
+  nlohmann::json j;
+  j["format"] = "idi-recording";
+  j["version"] = kRecordingVersion;
+  j["kind"] = h.kind;
+  j["created_unix_ns"] = h.created_unix_ns;
+  j["cameras"] = nlohmann::json::object();
+  for (const auto& [name, c] : h.cameras) {
+    j["cameras"][name] = {{"width", c.width}, {"height", c.height}, {"params", c.params}};
+  }
+  j["meta"] = h.meta;
+  return j;
+}
+
+}  // namespace
+
+Result<RecordingWriter> RecordingWriter::Create(const std::string& dir, const RecordingHeader& header) {
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !fs::is_empty(dir, ec)) {
+    return InvalidArgument(dir + ": a recording folder must be new or empty");
+  }
+  fs::create_directories(fs::path(dir) / "images", ec);
+  if (ec) return IoError(dir + ": cannot create: " + ec.message());
+  IDI_RETURN_IF_ERROR(WriteFileAtomically((fs::path(dir) / "recording.json").string(), HeaderJson(header).dump(2) + "\n"));
+  RecordingWriter w;
+  w.dir_ = dir;
+  w.header_ = header;
+  w.out_ = std::make_unique<std::ofstream>(fs::path(dir) / "events.jsonl", std::ios::out | std::ios::trunc);
+  if (!*w.out_) return IoError(dir + "/events.jsonl: cannot open for writing");
+  return w;
+}
+
+Status RecordingWriter::Add(int64_t t_ns, nlohmann::json event) {
+  if (!event.is_object() || !event.contains("type") || !event["type"].is_string()) {
+    return InvalidArgument("recording event needs a string 'type'");
+  }
+  event["t_ns"] = t_ns;
+  *out_ << event.dump() << '\n';
+  out_->flush();
+  if (!*out_) return IoError(dir_ + "/events.jsonl: write failed");
+  ++events_;
+  return Status::Ok();
+}
+
+Status RecordingWriter::AddImage(int64_t t_ns, const std::string& camera, uint64_t seq, const cv::Mat& image) {
+  if (image.empty() || image.depth() != CV_8U || (image.channels() != 1 && image.channels() != 3)) {
+    return InvalidArgument("recording: image from " + camera + " is empty or not 8-bit gray/BGR");
+  }
+  char name[64];
+  std::snprintf(name, sizeof(name), "%06llu_", static_cast<unsigned long long>(seq));
+  const std::string rel = std::string("images/") + name + camera + ".png";
+  const std::string path = (fs::path(dir_) / rel).string();
+  if (!cv::imwrite(path, image)) return IoError(path + ": cannot write the image");
+  return Add(t_ns, {{"type", "image"}, {"camera", camera}, {"seq", seq}, {"file", rel}});
+}
+
+Status RecordingWriter::Finish(const nlohmann::json& final_meta) {
+  header_.meta = final_meta;
+  out_->flush();
+  return WriteFileAtomically((fs::path(dir_) / "recording.json").string(), HeaderJson(header_).dump(2) + "\n");
+}
+
+Result<Recording> ReadRecording(const std::string& dir) {
+  const std::string header_path = (fs::path(dir) / "recording.json").string();
+  IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(header_path));
+  const nlohmann::json h = nlohmann::json::parse(text, nullptr, false);
+  if (h.is_discarded() || !h.is_object() || h.value("format", "") != "idi-recording") {
+    return ParseError(header_path + ": not an idi recording header");
+  }
+  if (h.value("version", 0) != kRecordingVersion) {
+    return ParseError(header_path + ": recording version " + std::to_string(h.value("version", 0)) +
+                      " (this build reads version " + std::to_string(kRecordingVersion) + ")");
+  }
+  Recording r;
+  r.dir = dir;
+  r.header.kind = h.value("kind", "");
+  r.header.created_unix_ns = h.value("created_unix_ns", int64_t{0});
+  r.header.meta = h.value("meta", nlohmann::json::object());
+  if (h.contains("cameras")) {
+    for (const auto& [name, c] : h["cameras"].items()) {
+      CameraModel m;
+      if (!c.contains("params") || !c["params"].is_array() || c["params"].size() != kCameraParamCount) {
+        return ParseError(header_path + ": camera '" + name + "' needs 9 params");
+      }
+      m.width = c.value("width", 0);
+      m.height = c.value("height", 0);
+      for (int k = 0; k < kCameraParamCount; ++k) m.params[static_cast<std::size_t>(k)] = c["params"][static_cast<std::size_t>(k)].get<double>();
+      r.header.cameras[name] = m;
+    }
+  }
+  const std::string events_path = (fs::path(dir) / "events.jsonl").string();
+  IDI_ASSIGN_OR_RETURN(const std::string events, ReadFile(events_path));
+  std::size_t start = 0;
+  int line_no = 0;
+  while (start < events.size()) {
+    const std::size_t nl = events.find('\n', start);
+    ++line_no;
+    if (nl == std::string::npos) {
+      // A last line without its newline: the run was killed while writing it.
+      r.truncated = true;
+      break;
+    }
+    const std::string line = events.substr(start, nl - start);
+    start = nl + 1;
+    if (line.empty()) continue;
+    nlohmann::json e = nlohmann::json::parse(line, nullptr, false);
+    if (e.is_discarded() || !e.is_object() || !e.contains("type") || !e.contains("t_ns")) {
+      return ParseError(events_path + ":" + std::to_string(line_no) + ": malformed event");
+    }
+    r.events.push_back(std::move(e));
+  }
+  return r;
+}
+
+Result<cv::Mat> LoadRecordedImage(const Recording& recording, const nlohmann::json& e) {
+  if (e.value("type", "") != "image" || !e.contains("file")) return InvalidArgument("not an image event");
+  const std::string path = (fs::path(recording.dir) / e["file"].get<std::string>()).string();
+  cv::Mat img = cv::imread(path, cv::IMREAD_UNCHANGED);
+  if (img.empty()) return IoError(path + ": cannot read the recorded image");
+  return img;
+}
+
+}  // namespace idi

@@ -1,0 +1,66 @@
+#include "shared/replay/recording.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+namespace idi {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(RecordingTest, RoundTripWithImagesAndATornLastLine) {
+  const fs::path dir = fs::temp_directory_path() / ("idi_recording_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  RecordingHeader h;
+  h.kind = "scan";
+  h.created_unix_ns = 123;
+  CameraModel cam;
+  cam.params[kK1] = -0.1;
+  h.cameras["left"] = cam;
+  auto w = RecordingWriter::Create(dir.string(), h);
+  ASSERT_TRUE(w.ok()) << w.status().ToString();
+  cv::Mat img(32, 48, CV_8UC1, cv::Scalar(7));
+  img.at<uint8_t>(3, 4) = 200;
+  ASSERT_TRUE(w->Add(10, {{"type", "joints"}, {"arm", 1}, {"q_deg", {1, 2, 3, 4, 5, 6}}}).ok());
+  ASSERT_TRUE(w->AddImage(20, "left", 1, img).ok());
+  EXPECT_FALSE(w->Add(30, {{"no_type", 1}}).ok());
+  ASSERT_TRUE(w->Finish({{"points", 8}}).ok());
+  // A run killed while writing leaves half a line.
+  {
+    std::ofstream out(dir / "events.jsonl", std::ios::app);
+    out << R"({"type": "joints", "t_n)";
+  }
+  const auto r = ReadRecording(dir.string());
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->header.kind, "scan");
+  EXPECT_EQ(r->header.meta["points"], 8);
+  EXPECT_DOUBLE_EQ(r->header.cameras.at("left").params[kK1], -0.1);
+  ASSERT_EQ(r->events.size(), 2u);
+  EXPECT_TRUE(r->truncated);
+  EXPECT_EQ(r->events[0]["t_ns"], 10);
+  const auto back = LoadRecordedImage(*r, r->events[1]);
+  ASSERT_TRUE(back.ok());
+  EXPECT_EQ(cv::norm(*back, img, cv::NORM_INF), 0.0);
+  // A new recording never overwrites an old one.
+  EXPECT_EQ(RecordingWriter::Create(dir.string(), h).status().code(), StatusCode::kInvalidArgument);
+  fs::remove_all(dir);
+}
+
+TEST(RecordingTest, MalformedInputIsNamed) {
+  const fs::path dir = fs::temp_directory_path() / ("idi_recording_bad_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  EXPECT_EQ(ReadRecording(dir.string()).status().code(), StatusCode::kNotFound);
+  std::ofstream(dir / "recording.json") << R"({"format": "idi-recording", "version": 1, "kind": "x"})";
+  std::ofstream(dir / "events.jsonl") << "{\"type\":\"note\",\"t_ns\":1}\nnot json\n";
+  const auto r = ReadRecording(dir.string());
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("events.jsonl:2"), std::string::npos) << r.status().message();
+  std::ofstream(dir / "recording.json") << R"({"format": "idi-recording", "version": 7})";
+  EXPECT_NE(ReadRecording(dir.string()).status().message().find("version 7"), std::string::npos);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace idi
