@@ -99,8 +99,8 @@ struct EmplOptions {
   double split_angle_deg = 1.5;
   // A segment whose edge points bend with a radius below curve_max_radius_px and a sagitta above
   // curve_min_sagitta_px (and 5 sigma) is a curve, not a line: it is left to the active contours.
-  double curve_max_radius_px = 400.0;
-  double curve_min_sagitta_px = 0.35;
+  double curve_max_radius_px = 250.0;
+  double curve_min_sagitta_px = 0.6;
   // Unconfirmed extension beyond each confirmed end (§8.8.2): fraction of the length, clamped.
   double extension_fraction = 0.1;
   double min_extension_px = 4.0;
