@@ -1,0 +1,550 @@
+// Exact area integration of the prepared scene over every pixel's footprint.
+//
+// For each pixel the candidate pieces (from its tile) are classified against the pixel quad by their
+// signed edge distances at its centre: outside, covering, or cut. A pixel covered by one piece that is
+// in front of every other candidate everywhere in the quad takes that piece's shading (the common
+// case, fast). Otherwise the visible part of each candidate is computed exactly: the quad clipped to the
+// piece, minus every piece in front of it (only where in front: the depth order of two planes flips
+// along a straight line in ideal coordinates). The pixel value is the area-weighted shading of the
+// visible parts plus background for the rest.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <vector>
+
+#include "shared/sim/render/raster_internal.h"
+
+namespace idi::sim::internal {
+namespace {
+
+constexpr int kMaxClipVerts = 40;
+// Beyond this many visible fragments of one face in one pixel (never seen in practice) the pixel is
+// integrated by 32 x 32 point samples instead.
+constexpr std::size_t kMaxFragments = 256;
+
+struct ClipPoly {
+  int n = 0;
+  std::array<Vec2d, kMaxClipVerts> v;
+
+  ClipPoly() = default;
+  ClipPoly(const ClipPoly& o) : n(o.n) { std::copy(o.v.begin(), o.v.begin() + n, v.begin()); }
+  ClipPoly& operator=(const ClipPoly& o) {
+    n = o.n;
+    std::copy(o.v.begin(), o.v.begin() + n, v.begin());
+    return *this;
+  }
+};
+
+// Keeps the part where a x + b y + c >= 0. Returns false when nothing is left.
+bool ClipHalfPlane(const ClipPoly& in, double a, double b, double c, ClipPoly* out) {
+  out->n = 0;
+  if (in.n == 0) return false;
+  std::array<double, kMaxClipVerts> s;
+  int inside = 0;
+  for (int i = 0; i < in.n; ++i) {
+    s[static_cast<std::size_t>(i)] = a * in.v[static_cast<std::size_t>(i)].x() + b * in.v[static_cast<std::size_t>(i)].y() + c;
+    if (s[static_cast<std::size_t>(i)] >= 0) ++inside;
+  }
+  if (inside == in.n) {
+    *out = in;
+    return true;
+  }
+  if (inside == 0) return false;
+  for (int i = 0; i < in.n; ++i) {
+    const int j = (i + 1) % in.n;
+    const double si = s[static_cast<std::size_t>(i)], sj = s[static_cast<std::size_t>(j)];
+    const Vec2d& vi = in.v[static_cast<std::size_t>(i)];
+    const Vec2d& vj = in.v[static_cast<std::size_t>(j)];
+    if (si >= 0) {
+      IDI_CHECK(out->n < kMaxClipVerts, "clip polygon overflow");
+      out->v[static_cast<std::size_t>(out->n++)] = vi;
+    }
+    if ((si >= 0) != (sj >= 0)) {
+      IDI_CHECK(out->n < kMaxClipVerts, "clip polygon overflow");
+      const double t = si / (si - sj);
+      out->v[static_cast<std::size_t>(out->n++)] = vi + t * (vj - vi);
+    }
+  }
+  return out->n >= 3;
+}
+
+double AreaAndCentroid(const ClipPoly& p, Vec2d* centroid) {
+  double a2 = 0, cx = 0, cy = 0;
+  const Vec2d o = p.v[0];
+  for (int i = 1; i + 1 < p.n; ++i) {
+    const Vec2d u = p.v[static_cast<std::size_t>(i)] - o, w = p.v[static_cast<std::size_t>(i + 1)] - o;
+    const double cr = u.x() * w.y() - u.y() * w.x();
+    a2 += cr;
+    cx += cr * (u.x() + w.x());
+    cy += cr * (u.y() + w.y());
+  }
+  if (std::abs(a2) < 1e-300) {
+    *centroid = o;
+    return 0;
+  }
+  *centroid = o + Vec2d(cx, cy) / (3 * a2);
+  return std::abs(a2) / 2;
+}
+
+// Gauss-Legendre nodes and weights on [0, 1] for m points (Newton on the Legendre polynomial).
+struct GaussLegendre {
+  std::vector<double> x, w;
+  explicit GaussLegendre(int m) {
+    for (int i = 1; i <= m; ++i) {
+      double z = std::cos(M_PI * (i - 0.25) / (m + 0.5));
+      double dp = 1;
+      for (int it = 0; it < 100; ++it) {
+        double p0 = 1, p1 = z;
+        for (int k = 2; k <= m; ++k) {
+          const double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
+          p0 = p1;
+          p1 = p2;
+        }
+        const double pm = m == 1 ? z : p1;
+        const double pm1 = m == 1 ? 1 : p0;
+        dp = m * (z * pm - pm1) / (z * z - 1);
+        const double step = pm / dp;
+        z -= step;
+        if (std::abs(step) < 1e-16) break;
+      }
+      x.push_back(0.5 * (1 - z));
+      w.push_back(1.0 / ((1 - z * z) * dp * dp));  // 2 / ((1 - z^2) P'^2), halved for [0, 1]
+    }
+  }
+};
+
+const GaussLegendre& GaussLegendreRule(int m) {
+  static const std::vector<GaussLegendre> rules = [] {
+    std::vector<GaussLegendre> r;
+    for (int k = 0; k <= 32; ++k) r.emplace_back(std::max(k, 1));
+    return r;
+  }();
+  return rules[static_cast<std::size_t>(std::clamp(m, 1, 32))];
+}
+
+}  // namespace
+
+double GaussLegendreNode(int m, int i) { return GaussLegendreRule(m).x[static_cast<std::size_t>(i)]; }
+double GaussLegendreWeight(int m, int i) { return GaussLegendreRule(m).w[static_cast<std::size_t>(i)]; }
+
+namespace {
+
+// A candidate piece active in the current pixel (or tile), with the edges that cut it.
+struct Active {
+  int piece = -1;
+  int group = -1;
+  bool interior = false;    // every cutting edge is a seam (or none cuts)
+  bool has_centre = false;  // the centre lies inside the piece
+  int n_cut = 0;
+  std::array<int, kMaxPieceVerts> cut;
+};
+
+class PixelIntegrator {
+ public:
+  // spots_only: integrate the laser spot layer instead of the surfaces' shading.
+  PixelIntegrator(const Prepared& prep, bool spots_only) : prep_(prep), spots_only_(spots_only) {
+    background_ = spots_only ? Vec3d::Zero() : prep.background;
+    rest_.reserve(64);
+    next_.reserve(64);
+  }
+
+  // Classifies the candidates against a region given by its centre and the largest distance from
+  // the centre to any point of it. Returns the index (in active_) of the front-most piece that
+  // contains the centre and whose group covers the whole region, provided that group is in front of
+  // every other active piece at all `corners`; -1 when the region needs exact integration.
+  int Classify(const Vec2d& c, double radius, const int* cand, int n_cand, const Vec2d* corners, int n_corners) {
+    active_.clear();
+    for (int k = 0; k < n_cand; ++k) {
+      const Piece& p = prep_.pieces[static_cast<std::size_t>(cand[k])];
+      Active a;
+      a.piece = cand[k];
+      a.group = p.group;
+      bool outside = false;
+      double min_s = 1e300;
+      bool boundary_cut = false;
+      for (int i = 0; i < p.n; ++i) {
+        const Vec3d& h = p.e[static_cast<std::size_t>(i)];
+        const double s = h.x() * c.x() + h.y() * c.y() + h.z();
+        if (s <= -radius) {
+          outside = true;
+          break;
+        }
+        min_s = std::min(min_s, s);
+        if (s < radius) {
+          a.cut[static_cast<std::size_t>(a.n_cut++)] = i;
+          if ((p.seam_mask & (1u << i)) == 0) boundary_cut = true;
+        }
+      }
+      if (outside) continue;
+      a.interior = !boundary_cut;
+      a.has_centre = min_s >= 0;
+      active_.push_back(a);
+    }
+    int front = -1;
+    for (std::size_t k = 0; k < active_.size(); ++k) {
+      const Active& a = active_[k];
+      if (!a.interior || !a.has_centre) continue;
+      if (front < 0 || FrontOrder(prep_.pieces[static_cast<std::size_t>(a.piece)],
+                                  prep_.pieces[static_cast<std::size_t>(active_[static_cast<std::size_t>(front)].piece)],
+                                  &c, 1) > 0) {
+        front = static_cast<int>(k);
+      }
+    }
+    if (front < 0) return -1;
+    const int g = active_[static_cast<std::size_t>(front)].group;
+    for (std::size_t k = 0; k < active_.size(); ++k) {
+      const Active& a = active_[k];
+      if (a.group == g) {
+        if (!a.interior) return -1;  // the group's outline crosses the region
+        continue;
+      }
+      const Piece& pa = prep_.pieces[static_cast<std::size_t>(a.piece)];
+      for (const Active& m : active_) {
+        if (m.group != g) continue;
+        if (FrontOrder(prep_.pieces[static_cast<std::size_t>(m.piece)], pa, corners, n_corners) <= 0) return -1;
+      }
+    }
+    return front;
+  }
+
+  // The piece of active_[front]'s group that contains point p (the covering group's member).
+  int MemberAt(int front, const Vec2d& p) {
+    const Active& f = active_[static_cast<std::size_t>(front)];
+    if (last_member_ >= 0 && prep_.pieces[static_cast<std::size_t>(last_member_)].group == f.group &&
+        prep_.pieces[static_cast<std::size_t>(last_member_)].Inside(p) >= 0) {
+      return last_member_;
+    }
+    if (prep_.pieces[static_cast<std::size_t>(f.piece)].Inside(p) >= 0) return last_member_ = f.piece;
+    int best = f.piece;
+    double best_s = -1e300;
+    for (const Active& a : active_) {
+      if (a.group != f.group) continue;
+      const double s = prep_.pieces[static_cast<std::size_t>(a.piece)].Inside(p);
+      if (s >= 0) return last_member_ = a.piece;
+      if (s > best_s) {
+        best_s = s;
+        best = a.piece;
+      }
+    }
+    return best;
+  }
+
+  const Piece& FrontPiece(int front) const {
+    return prep_.pieces[static_cast<std::size_t>(active_[static_cast<std::size_t>(front)].piece)];
+  }
+
+  bool GroupOfOne(int front) const {
+    for (std::size_t k = 0; k < active_.size(); ++k) {
+      if (static_cast<int>(k) != front && active_[k].group == active_[static_cast<std::size_t>(front)].group) return false;
+    }
+    return true;
+  }
+
+  // Radiance over the pixel quad q (ideal coordinates).
+  Vec3d Pixel(const Vec2d* q, const int* cand, int n_cand, double radius, int samples) {
+    const Vec2d c = (q[0] + q[1] + q[2] + q[3]) / 4;
+    const int front = Classify(c, radius, cand, n_cand, q, 4);
+    if (active_.empty()) return background_;
+    if (front >= 0 && (samples <= 1 || GroupOfOne(front))) {
+      const Piece& f = prep_.pieces[static_cast<std::size_t>(active_[static_cast<std::size_t>(front)].piece)];
+      return ShadeArea(prep_.surfaces[static_cast<std::size_t>(f.surface)], q, samples);
+    }
+    if (samples <= 1) return Exact(q);
+    // Near a laser spot: exact visibility on each of n x n sub-quads.
+    Vec3d sum = Vec3d::Zero();
+    double area_sum = 0;
+    for (int j = 0; j < samples; ++j) {
+      for (int i = 0; i < samples; ++i) {
+        Vec2d sq[4];
+        const double u[2] = {static_cast<double>(i) / samples, static_cast<double>(i + 1) / samples};
+        const double v[2] = {static_cast<double>(j) / samples, static_cast<double>(j + 1) / samples};
+        sq[0] = Bilinear(q, u[0], v[0]);
+        sq[1] = Bilinear(q, u[1], v[0]);
+        sq[2] = Bilinear(q, u[1], v[1]);
+        sq[3] = Bilinear(q, u[0], v[1]);
+        const double a = QuadArea(sq);
+        sum += a * Exact(sq);
+        area_sum += a;
+      }
+    }
+    return area_sum > 0 ? Vec3d(sum / area_sum) : background_;
+  }
+
+  // Centre shading of a pixel inside a tile that Classify found covered by one group.
+  Vec3d TilePixel(int front, bool group_of_one, const Vec2d* q) {
+    const Vec2d c = (q[0] + q[1] + q[2] + q[3]) / 4;
+    const int member = group_of_one ? active_[static_cast<std::size_t>(front)].piece : MemberAt(front, c);
+    const Piece& p = prep_.pieces[static_cast<std::size_t>(member)];
+    return Radiance(prep_.surfaces[static_cast<std::size_t>(p.surface)], c.x(), c.y(), std::sqrt(QuadArea(q)));
+  }
+
+ private:
+  static Vec2d Bilinear(const Vec2d* q, double u, double v) {
+    return (1 - v) * ((1 - u) * q[0] + u * q[1]) + v * ((1 - u) * q[3] + u * q[2]);
+  }
+  static double QuadArea(const Vec2d* q) {
+    const Vec2d d1 = q[2] - q[0], d2 = q[3] - q[1];
+    return std::abs(d1.x() * d2.y() - d1.y() * d2.x()) / 2;
+  }
+
+  // Shading of one surface over the whole quad: centre value, or n x n quadrature near a spot.
+  Vec3d ShadeArea(const Surface& s, const Vec2d* q, int samples) {
+    if (samples <= 1) {
+      const Vec2d c = (q[0] + q[1] + q[2] + q[3]) / 4;
+      return Radiance(s, c.x(), c.y(), std::sqrt(QuadArea(q)));
+    }
+    // Gauss-Legendre product rule over the bilinear quad, weighted by the map's Jacobian: accurate
+    // to ~1e-9 for a spot a third of a pixel wide, so its centroid is not biased by the sampling.
+    const GaussLegendre& gl = GaussLegendreRule(samples);
+    Vec3d sum = Vec3d::Zero();
+    double wsum = 0;
+    const double foot = std::sqrt(QuadArea(q)) / samples;
+    for (std::size_t j = 0; j < gl.x.size(); ++j) {
+      for (std::size_t i = 0; i < gl.x.size(); ++i) {
+        const double u = gl.x[i], v = gl.x[j];
+        const Vec2d du = (1 - v) * (q[1] - q[0]) + v * (q[2] - q[3]);
+        const Vec2d dv = (1 - u) * (q[3] - q[0]) + u * (q[2] - q[1]);
+        const double w = gl.w[i] * gl.w[j] * std::abs(du.x() * dv.y() - du.y() * dv.x());
+        const Vec2d p = Bilinear(q, u, v);
+        sum += w * Radiance(s, p.x(), p.y(), foot);
+        wsum += w;
+      }
+    }
+    return sum / wsum;
+  }
+
+  // Point-sampled integration (32 x 32) of a quad: the fallback for pathological overlaps.
+  Vec3d SampledFallback(const Vec2d* q) {
+    constexpr int kN = 32;
+    Vec3d sum = Vec3d::Zero();
+    for (int j = 0; j < kN; ++j) {
+      for (int i = 0; i < kN; ++i) {
+        const Vec2d p = Bilinear(q, (i + 0.5) / kN, (j + 0.5) / kN);
+        int front = -1;
+        for (const Active& a : active_) {
+          const Piece& pc = prep_.pieces[static_cast<std::size_t>(a.piece)];
+          if (pc.Inside(p) < 0) continue;
+          if (front < 0 || FrontOrder(pc, prep_.pieces[static_cast<std::size_t>(front)], &p, 1) > 0) front = a.piece;
+        }
+        if (front < 0) {
+          sum += background_;
+        } else {
+          const Piece& pc = prep_.pieces[static_cast<std::size_t>(front)];
+          sum += Radiance(prep_.surfaces[static_cast<std::size_t>(pc.surface)], p.x(), p.y(), 1.0 / kN);
+        }
+      }
+    }
+    return sum / (kN * kN);
+  }
+
+  // Exact visible-area integration over a quad.
+  Vec3d Exact(const Vec2d* q) {
+    ClipPoly quad;
+    quad.n = 4;
+    for (int i = 0; i < 4; ++i) quad.v[static_cast<std::size_t>(i)] = q[i];
+    // Make it counter-clockwise in the sense the clipper does not care about (it only uses signs).
+    Vec2d unused;
+    const double area = AreaAndCentroid(quad, &unused);
+    if (!(area > 0)) return background_;
+    const double foot = std::sqrt(area);
+    Vec3d sum = Vec3d::Zero();
+    double covered = 0;
+    ClipPoly tmp;
+    for (std::size_t ia = 0; ia < active_.size(); ++ia) {
+      const Active& aa = active_[ia];
+      const Piece& a = prep_.pieces[static_cast<std::size_t>(aa.piece)];
+      // Quad clipped to piece a (only the edges that cut the quad matter).
+      ClipPoly start = quad;
+      bool empty = false;
+      for (int k = 0; k < aa.n_cut && !empty; ++k) {
+        const Vec3d& h = a.e[static_cast<std::size_t>(aa.cut[static_cast<std::size_t>(k)])];
+        empty = !ClipHalfPlane(start, h.x(), h.y(), h.z(), &tmp);
+        start = tmp;
+      }
+      if (empty) continue;
+      rest_.clear();
+      rest_.push_back(start);
+      for (std::size_t ib = 0; ib < active_.size() && !rest_.empty(); ++ib) {
+        if (ib == ia) continue;
+        const Active& bb = active_[ib];
+        const Piece& b = prep_.pieces[static_cast<std::size_t>(bb.piece)];
+        const int order = FrontOrder(b, a, q, 4);
+        if (order < 0) continue;
+        // Subtract b (where it is in front of a) from every remaining polygon.
+        half_.clear();
+        for (int k = 0; k < bb.n_cut; ++k) half_.push_back(b.e[static_cast<std::size_t>(bb.cut[static_cast<std::size_t>(k)])]);
+        if (order == 0) half_.push_back(b.w - a.w);
+        Subtract(1e-13 * area);
+        if (rest_.size() > kMaxFragments) return SampledFallback(q);
+      }
+      for (const ClipPoly& p : rest_) {
+        Vec2d centroid;
+        const double pa = AreaAndCentroid(p, &centroid);
+        if (pa <= 0) continue;
+        sum += pa * Radiance(prep_.surfaces[static_cast<std::size_t>(a.surface)], centroid.x(), centroid.y(), foot);
+        covered += pa;
+      }
+    }
+    if (covered < area) sum += (area - covered) * background_;
+    return sum / area;
+  }
+
+  // rest_ := rest_ minus the convex region given by half_ (an intersection of half-planes). Polygons
+  // that do not meet the region stay whole, and only half-planes that cut a polygon split it, so the
+  // number of fragments grows only with real overlaps. Fragments below min_area are dropped.
+  void Subtract(double min_area) {
+    next_.clear();
+    ClipPoly outside, inside, probe, tmp;
+    for (const ClipPoly& p0 : rest_) {
+      probe = p0;
+      bool meets = true;
+      for (const Vec3d& h : half_) {
+        if (!ClipHalfPlane(probe, h.x(), h.y(), h.z(), &tmp)) {
+          meets = false;
+          break;
+        }
+        probe = tmp;
+      }
+      Vec2d unused;
+      if (!meets || AreaAndCentroid(probe, &unused) <= min_area) {
+        next_.push_back(p0);
+        continue;
+      }
+      ClipPoly cur = p0;
+      for (const Vec3d& h : half_) {
+        if (ClipHalfPlane(cur, -h.x(), -h.y(), -h.z(), &outside) && AreaAndCentroid(outside, &unused) > min_area) {
+          next_.push_back(outside);
+        }
+        if (!ClipHalfPlane(cur, h.x(), h.y(), h.z(), &inside)) break;
+        cur = inside;
+      }
+      // What is left inside every half-plane is covered by b: dropped.
+    }
+    rest_.swap(next_);
+  }
+
+  Vec3d Radiance(const Surface& s, double x, double y, double footprint_px) const {
+    return spots_only_ ? SpotEmission(prep_, s, x, y) : Shade(prep_, s, x, y, footprint_px);
+  }
+
+  const Prepared& prep_;
+  bool spots_only_;
+  Vec3d background_;
+  int last_member_ = -1;
+  std::vector<Active> active_;
+  std::vector<ClipPoly> rest_, next_;
+  std::vector<Vec3d> half_;
+};
+
+}  // namespace
+
+void RasterizeRadiance(const Prepared& prep, bool color, cv::Mat* out_image) {
+  const PixelGrid& g = *prep.grid;
+  out_image->create(g.rows, g.cols, color ? CV_32FC3 : CV_32FC1);
+  cv::Mat& out = *out_image;
+  PixelIntegrator integrator(prep, false);
+  auto store = [&](int i, int j, const Vec3d& rgb) {
+    if (color) {
+      out.at<cv::Vec3f>(j, i) =
+          cv::Vec3f(static_cast<float>(rgb.x()), static_cast<float>(rgb.y()), static_cast<float>(rgb.z()));
+    } else {
+      out.at<float>(j, i) = static_cast<float>(Luma(rgb));
+    }
+  };
+  for (int ty = 0; ty < prep.tiles_y; ++ty) {
+    for (int tx = 0; tx < prep.tiles_x; ++tx) {
+      const std::size_t t = static_cast<std::size_t>(ty * prep.tiles_x + tx);
+      const int* cand = prep.tile_items.data() + prep.tile_start[t];
+      const int n_cand = prep.tile_start[t + 1] - prep.tile_start[t];
+      const double radius = prep.tile_radius[t];
+      const int i0 = tx * kTileSize, j0 = ty * kTileSize;
+      const int i1 = std::min(i0 + kTileSize, g.cols), j1 = std::min(j0 + kTileSize, g.rows);
+      if (n_cand == 0) {
+        for (int j = j0; j < j1; ++j) {
+          for (int i = i0; i < i1; ++i) store(i, j, prep.background);
+        }
+        continue;
+      }
+      // Whole tile covered by one group in front of everything else: centre shading, no per-pixel tests.
+      const auto& box = prep.tile_box[t];
+      const Vec2d corners[4] = {{box[0], box[1]}, {box[2], box[1]}, {box[2], box[3]}, {box[0], box[3]}};
+      const Vec2d centre((box[0] + box[2]) / 2, (box[1] + box[3]) / 2);
+      const double half_diag = 0.5 * std::hypot(box[2] - box[0], box[3] - box[1]) * (1 + 1e-9);
+      const int front = integrator.Classify(centre, half_diag, cand, n_cand, corners, 4);
+      if (front >= 0) {
+        const bool one = integrator.GroupOfOne(front);
+        const Surface& fs = prep.surfaces[static_cast<std::size_t>(integrator.FrontPiece(front).surface)];
+        for (int j = j0; j < j1; ++j) {
+          for (int i = i0; i < i1; ++i) {
+            if (one && fs.constant) {
+              store(i, j, fs.radiance);
+            } else {
+              const Vec2d q[4] = {g.Corner(i, j), g.Corner(i + 1, j), g.Corner(i + 1, j + 1), g.Corner(i, j + 1)};
+              store(i, j, integrator.TilePixel(front, one, q));
+            }
+          }
+        }
+        continue;
+      }
+      for (int j = j0; j < j1; ++j) {
+        for (int i = i0; i < i1; ++i) {
+          const Vec2d q[4] = {g.Corner(i, j), g.Corner(i + 1, j), g.Corner(i + 1, j + 1), g.Corner(i, j + 1)};
+          store(i, j, integrator.Pixel(q, cand, n_cand, radius, 1));
+        }
+      }
+    }
+  }
+}
+
+bool RasterizeSpots(const Prepared& prep, bool color, cv::Mat* out_image) {
+  if (prep.spot_boxes.empty()) return false;
+  const PixelGrid& g = *prep.grid;
+  out_image->create(g.rows, g.cols, color ? CV_32FC3 : CV_32FC1);
+  out_image->setTo(cv::Scalar::all(0));
+  auto add = [&](int i, int j, const Vec3d& rgb) {
+    if (color) {
+      out_image->at<cv::Vec3f>(j, i) +=
+          cv::Vec3f(static_cast<float>(rgb.x()), static_cast<float>(rgb.y()), static_cast<float>(rgb.z()));
+    } else {
+      out_image->at<float>(j, i) += static_cast<float>(Luma(rgb));
+    }
+  };
+  cv::Mat done(g.rows, g.cols, CV_8UC1, cv::Scalar(0));
+  PixelIntegrator integrator(prep, true);
+  for (const SpotBox& b : prep.spot_boxes) {
+    const PreparedSpot& ps = prep.laser_spots[static_cast<std::size_t>(b.spot)];
+    const GaussLegendre& gl = GaussLegendreRule(b.samples);
+    for (int j = std::max(b.y0, 0); j <= std::min(b.y1, g.rows - 1); ++j) {
+      for (int i = std::max(b.x0, 0); i <= std::min(b.x1, g.cols - 1); ++i) {
+        if (ps.image_layer) {
+          // The spot's image convolved with the PSF, integrated over the pixel square.
+          double sum = 0;
+          for (std::size_t v = 0; v < gl.x.size(); ++v) {
+            for (std::size_t u = 0; u < gl.x.size(); ++u) {
+              const Vec2d d = Vec2d(g.x0 + i - 0.5 + gl.x[u], g.y0 + j - 0.5 + gl.x[v]) - ps.centroid_px;
+              sum += gl.w[u] * gl.w[v] * std::exp(-0.5 * d.dot(ps.inv_cov_layer * d));
+            }
+          }
+          add(i, j, ps.amplitude * sum * ps.color);
+          continue;
+        }
+        // No PSF: the emission on the surfaces, with exact visibility (once per pixel for all spots).
+        if (done.at<uint8_t>(j, i) != 0) continue;
+        done.at<uint8_t>(j, i) = 1;
+        int samples = 1;
+        for (const SpotBox& o : prep.spot_boxes) {
+          if (i >= o.x0 && i <= o.x1 && j >= o.y0 && j <= o.y1) samples = std::max(samples, o.samples);
+        }
+        const int tx = i / kTileSize, ty = j / kTileSize;
+        const std::size_t t = static_cast<std::size_t>(ty * prep.tiles_x + tx);
+        const Vec2d q[4] = {g.Corner(i, j), g.Corner(i + 1, j), g.Corner(i + 1, j + 1), g.Corner(i, j + 1)};
+        add(i, j,
+            integrator.Pixel(q, prep.tile_items.data() + prep.tile_start[t], prep.tile_start[t + 1] - prep.tile_start[t],
+                             prep.tile_radius[t], samples));
+      }
+    }
+  }
+  return true;
+}
+
+}  // namespace idi::sim::internal

@@ -1,0 +1,114 @@
+#include "shared/sim/render/render.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include <cmath>
+
+#include "shared/sim/render/raster_internal.h"
+
+namespace idi::sim {
+
+Status RenderOptions::Check() const {
+  if (!std::isfinite(exposure_dn) || exposure_dn < 0) {
+    return InvalidArgument("render exposure_dn must be >= 0, got " + std::to_string(exposure_dn));
+  }
+  if (!std::isfinite(psf_sigma_px) || psf_sigma_px < 0 || psf_sigma_px > 20) {
+    return InvalidArgument("render psf_sigma_px must be in [0, 20], got " + std::to_string(psf_sigma_px));
+  }
+  if (!std::isfinite(vignetting) || vignetting < 0 || vignetting >= 1) {
+    return InvalidArgument("render vignetting must be in [0, 1), got " + std::to_string(vignetting));
+  }
+  if (!(near_clip > 0) || !std::isfinite(near_clip)) {
+    return InvalidArgument("render near_clip must be positive, got " + std::to_string(near_clip));
+  }
+  if (!std::isfinite(truth_min_contrast_dn) || truth_min_contrast_dn < 0) {
+    return InvalidArgument("render truth_min_contrast_dn must be >= 0");
+  }
+  return sensor.Check();
+}
+
+namespace {
+
+Status CheckCamera(const CameraModel& camera, const Rigid3d& cam_from_world) {
+  if (camera.width <= 0 || camera.height <= 0 || camera.width > 16384 || camera.height > 16384) {
+    return InvalidArgument("camera size must be within 1..16384 pixels, got " + std::to_string(camera.width) + "x" +
+                           std::to_string(camera.height));
+  }
+  for (const double p : camera.params) {
+    if (!std::isfinite(p)) return InvalidArgument("camera intrinsics must be finite");
+  }
+  if (!(camera.fx() > 0) || !(camera.fy() > 0)) return InvalidArgument("camera fx and fy must be positive");
+  if (!cam_from_world.rotation.allFinite() || !cam_from_world.translation.allFinite()) {
+    return InvalidArgument("cam_from_world must be finite");
+  }
+  const Mat3d rtr = cam_from_world.rotation.transpose() * cam_from_world.rotation;
+  if ((rtr - Mat3d::Identity()).norm() > 1e-6 || cam_from_world.rotation.determinant() < 0) {
+    return InvalidArgument("cam_from_world rotation is not a rotation matrix");
+  }
+  return Status::Ok();
+}
+
+// Vignetting and exposure in place.
+void ApplyExposure(cv::Mat& radiance, const internal::PixelGrid& grid, const CameraModel& camera,
+                   const RenderOptions& options) {
+  const double corner2 = std::max({std::pow(camera.cx() + 0.5, 2) + std::pow(camera.cy() + 0.5, 2),
+                                   std::pow(camera.width - 0.5 - camera.cx(), 2) + std::pow(camera.cy() + 0.5, 2),
+                                   std::pow(camera.cx() + 0.5, 2) + std::pow(camera.height - 0.5 - camera.cy(), 2),
+                                   std::pow(camera.width - 0.5 - camera.cx(), 2) +
+                                       std::pow(camera.height - 0.5 - camera.cy(), 2)});
+  const int ch = radiance.channels();
+  for (int j = 0; j < radiance.rows; ++j) {
+    float* row = radiance.ptr<float>(j);
+    const double dy = grid.y0 + j - camera.cy();
+    for (int i = 0; i < radiance.cols; ++i) {
+      double gain = options.exposure_dn;
+      if (options.vignetting > 0) {
+        const double dx = grid.x0 + i - camera.cx();
+        gain *= std::max(0.0, 1 - options.vignetting * (dx * dx + dy * dy) / corner2);
+      }
+      for (int c = 0; c < ch; ++c) row[i * ch + c] = static_cast<float>(row[i * ch + c] * gain);
+    }
+  }
+}
+
+// The surfaces blurred by the PSF plus the spot layer (its PSF already included), cropped.
+cv::Mat FinishOptics(cv::Mat& radiance, const cv::Mat* spots, const internal::PixelGrid& grid,
+                     const CameraModel& camera, const RenderOptions& options) {
+  const int ch = radiance.channels();
+  ApplyExposure(radiance, grid, camera, options);
+  ApplyPsf(&radiance, options.psf_sigma_px);
+  cv::Mat crop = radiance(cv::Rect(-grid.x0, -grid.y0, camera.width, camera.height)).clone();
+  if (spots != nullptr) {
+    cv::Mat sp = spots->clone();
+    ApplyExposure(sp, grid, camera, options);
+    crop += sp(cv::Rect(-grid.x0, -grid.y0, camera.width, camera.height));
+  }
+  if (ch == 3) cv::cvtColor(crop, crop, cv::COLOR_RGB2BGR);
+  return crop;
+}
+
+}  // namespace
+
+Result<cv::Mat> RenderIrradiance(const Scene& scene, const CameraModel& camera, const Rigid3d& cam_from_world,
+                                 const RenderOptions& options, GroundTruth* truth) {
+  IDI_RETURN_IF_ERROR(options.Check());
+  IDI_RETURN_IF_ERROR(CheckCamera(camera, cam_from_world));
+  IDI_RETURN_IF_ERROR(scene.Check());
+  const int margin = options.psf_sigma_px > 0 ? static_cast<int>(std::ceil(4 * options.psf_sigma_px)) + 1 : 0;
+  IDI_ASSIGN_OR_RETURN(const internal::Prepared prep, internal::Prepare(scene, camera, cam_from_world, options, margin));
+  // The raster buffer is reused between frames of one thread (a fresh one costs page faults).
+  thread_local cv::Mat radiance;
+  internal::RasterizeRadiance(prep, options.color, &radiance);
+  cv::Mat spots;
+  const bool have_spots = internal::RasterizeSpots(prep, options.color, &spots);
+  if (truth != nullptr) internal::ComputeGroundTruth(prep, options, truth);
+  return FinishOptics(radiance, have_spots ? &spots : nullptr, *prep.grid, camera, options);
+}
+
+Result<cv::Mat> RenderScene(const Scene& scene, const CameraModel& camera, const Rigid3d& cam_from_world,
+                            const RenderOptions& options, GroundTruth* truth) {
+  IDI_ASSIGN_OR_RETURN(const cv::Mat irradiance, RenderIrradiance(scene, camera, cam_from_world, options, truth));
+  return ApplySensor(irradiance, options.sensor, options.seed);
+}
+
+}  // namespace idi::sim

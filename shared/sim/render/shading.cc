@@ -1,0 +1,190 @@
+// Lambertian shading with procedural textures filtered over the pixel footprint.
+#include <algorithm>
+#include <cmath>
+#include <array>
+#include <cstdint>
+#include <utility>
+
+#include "shared/sim/render/raster_internal.h"
+
+namespace idi::sim::internal {
+namespace {
+
+uint64_t MixBits(uint64_t x) {
+  x ^= x >> 33;
+  x *= 0xff51afd7ed558ccdULL;
+  x ^= x >> 33;
+  x *= 0xc4ceb9fe1a85ec53ULL;
+  x ^= x >> 33;
+  return x;
+}
+
+// Lattice values for value noise: a fixed random permutation and value table (Perlin's construction);
+// a texture's seed and octave shift the lattice, so every texture gets its own pattern.
+struct NoiseTables {
+  std::array<uint8_t, 256> perm;
+  std::array<double, 256> value;
+  NoiseTables() {
+    uint64_t state = 0x1D1C0FFEEULL;
+    for (int i = 0; i < 256; ++i) perm[static_cast<std::size_t>(i)] = static_cast<uint8_t>(i);
+    for (int i = 255; i > 0; --i) {
+      state = MixBits(state + 0x9E3779B97F4A7C15ULL);
+      std::swap(perm[static_cast<std::size_t>(i)], perm[static_cast<std::size_t>(state % static_cast<uint64_t>(i + 1))]);
+    }
+    for (int i = 0; i < 256; ++i) {
+      state = MixBits(state + 0x9E3779B97F4A7C15ULL);
+      value[static_cast<std::size_t>(i)] = static_cast<double>(state >> 11) * (2.0 / 9007199254740992.0) - 1.0;
+    }
+  }
+};
+
+const NoiseTables& Tables() {
+  static const NoiseTables tables;
+  return tables;
+}
+
+// Hash of a lattice point to [-1, 1] (period 256 cells).
+inline double LatticeValue(int64_t i, int64_t j, const NoiseTables& t) {
+  const uint8_t a = t.perm[static_cast<std::size_t>(i & 255)];
+  return t.value[t.perm[static_cast<std::size_t>((a + j) & 255)]];
+}
+
+// Per-tile brightness hash (no period).
+double TileHash(int64_t i, int64_t j, uint64_t seed) {
+  const uint64_t h = MixBits(static_cast<uint64_t>(i) * 0x9E3779B97F4A7C15ULL ^
+                             MixBits(static_cast<uint64_t>(j) + 0x632BE59BD9B4E019ULL + seed * 0x85EBCA77C2B2AE63ULL));
+  return static_cast<double>(h >> 11) * (2.0 / 9007199254740992.0) - 1.0;
+}
+
+double Quintic(double t) { return t * t * t * (t * (t * 6 - 15) + 10); }
+
+// Smooth value noise in [-1, 1] with unit lattice spacing; `shift` moves the lattice (per seed/octave).
+double ValueNoise(double x, double y, int64_t shift_x, int64_t shift_y) {
+  const NoiseTables& t = Tables();
+  const double fx = std::floor(x), fy = std::floor(y);
+  const auto ix = static_cast<int64_t>(fx) + shift_x, iy = static_cast<int64_t>(fy) + shift_y;
+  const double tx = Quintic(x - fx), ty = Quintic(y - fy);
+  const double a = LatticeValue(ix, iy, t), b = LatticeValue(ix + 1, iy, t);
+  const double c = LatticeValue(ix, iy + 1, t), d = LatticeValue(ix + 1, iy + 1, t);
+  return (a + (b - a) * tx) + ((c + (d - c) * tx) - (a + (b - a) * tx)) * ty;
+}
+
+// Length of grout within (-inf, x] measured from 0, for grout lines of width g centred on multiples of
+// the period p: the integral of the pulse train, so a box filter is a difference of two values.
+double GroutIntegral(double x, double p, double g) {
+  const double s = x + g / 2;
+  const double k = std::floor(s / p);
+  return k * g + std::min(s - k * p, g);
+}
+
+// Fraction of [x - f/2, x + f/2] covered by grout.
+double FilteredGrout(double x, double f, double p, double g) {
+  if (g <= 0) return 0;
+  if (f < 1e-9 * p) {
+    const double s = x + g / 2;
+    return s - std::floor(s / p) * p < g ? 1.0 : 0.0;
+  }
+  return (GroutIntegral(x + f / 2, p, g) - GroutIntegral(x - f / 2, p, g)) / f;
+}
+
+// The texture's albedo at (u, v) averaged over a footprint fu x fv.
+Vec3d TexturedAlbedo(const Texture& t, const Vec3d& base, double u, double v, double fu, double fv) {
+  Vec3d albedo = base;
+  if (t.tile_size > 0) {
+    const double p = t.tile_size;
+    if (t.tile_jitter > 0) {
+      // Per-tile brightness; faded out when the footprint spans several tiles (its average is 1).
+      const double fade = std::clamp(2.0 - 2.0 * std::max(fu, fv) / p, 0.0, 1.0);
+      if (fade > 0) {
+        const double h = TileHash(static_cast<int64_t>(std::floor(u / p + 0.5)),
+                                  static_cast<int64_t>(std::floor(v / p + 0.5)), t.seed ^ 0x7715ULL);
+        albedo *= 1 + fade * t.tile_jitter * h;
+      }
+    }
+    const double gu = FilteredGrout(u, fu, p, t.grout_width), gv = FilteredGrout(v, fv, p, t.grout_width);
+    const double g = 1 - (1 - gu) * (1 - gv);
+    albedo = (1 - g) * albedo + g * t.grout_albedo;
+  }
+  if (t.noise_amplitude > 0) {
+    const double f = std::max(fu, fv);
+    double sum = 0, norm = 0, amp = 1, wavelength = t.noise_scale;
+    for (int o = 0; o < t.noise_octaves; ++o) {
+      // Octaves finer than the footprint average to zero: fade them out (frequency clamping).
+      const double fade = std::clamp(2.0 - 4.0 * f / wavelength, 0.0, 1.0);
+      if (fade > 0) {
+        const uint64_t h = MixBits(t.seed * 31 + static_cast<uint64_t>(o));
+        sum += fade * amp *
+               ValueNoise(u / wavelength, v / wavelength, static_cast<int64_t>(h & 255), static_cast<int64_t>((h >> 8) & 255));
+      }
+      norm += amp;
+      amp *= 0.5;
+      wavelength *= 0.5;
+    }
+    albedo *= std::max(0.0, 1 + t.noise_amplitude * sum / norm);
+  }
+  return albedo;
+}
+
+}  // namespace
+
+Vec3d Shade(const Prepared& prep, const Surface& s, double x, double y, double footprint_px) {
+  if (s.constant) return s.radiance;
+  const Vec3d ray = prep.Ray(x, y);
+  const double w = s.normal.dot(ray) / s.d;  // 1/z on the face's plane
+  const Vec3d p = ray / w;
+  double irradiance = s.flat_irradiance;
+  Vec3d n = s.normal;
+  if (s.cylinder) {
+    const Vec3d rel = p - s.axis_point;
+    n = (rel - rel.dot(s.axis_dir) * s.axis_dir).normalized();
+    irradiance = prep.ambient;
+    for (std::size_t k = 0; k < prep.light_dirs.size(); ++k) {
+      irradiance += prep.light_intensity[k] * std::max(0.0, n.dot(prep.light_dirs[k]));
+    }
+  }
+  for (const SpotLight& sl : prep.spotlights) {
+    const Vec3d to_light = sl.position - p;
+    const double dist = to_light.norm();
+    if (!(dist > 0)) continue;
+    const Vec3d l = to_light / dist;
+    const double cos_inc = n.dot(l);
+    if (cos_inc <= 0) continue;
+    const double cos_axis = -l.dot(sl.direction);
+    const double cos_cone = std::cos(sl.cone_half_angle_rad);
+    if (cos_axis <= cos_cone) continue;
+    // cos^m falloff inside the cone, and a smooth edge over the outer 10% of the cone.
+    const double edge = std::clamp((cos_axis - cos_cone) / (0.1 * (1 - cos_cone)), 0.0, 1.0);
+    const double r = sl.reference_distance / dist;
+    irradiance += sl.intensity * cos_inc * r * r * std::pow(cos_axis, sl.falloff_exponent) * edge * edge * (3 - 2 * edge);
+  }
+  if (prep.has_gradient) {
+    irradiance *= std::max(prep.gradient.min_factor, 1 + prep.gradient.gradient.dot(p - prep.gradient.origin));
+  }
+  Vec3d albedo = s.albedo;
+  if (s.texture != nullptr) {
+    // Footprint of the area in texture units: derivative of the surface point along x and y.
+    const double dw_dx = s.normal.x() / (prep.fx * s.d), dw_dy = s.normal.y() / (prep.fy * s.d);
+    const Vec3d dp_dx = Vec3d(1 / prep.fx, 0, 0) / w - ray * (dw_dx / (w * w));
+    const Vec3d dp_dy = Vec3d(0, 1 / prep.fy, 0) / w - ray * (dw_dy / (w * w));
+    const double fu = footprint_px * (std::abs(s.tex_u.dot(dp_dx)) + std::abs(s.tex_u.dot(dp_dy)));
+    const double fv = footprint_px * (std::abs(s.tex_v.dot(dp_dx)) + std::abs(s.tex_v.dot(dp_dy)));
+    albedo = TexturedAlbedo(*s.texture, albedo, s.tex_u.dot(p) + s.tex_u0, s.tex_v.dot(p) + s.tex_v0, fu, fv);
+  }
+  return irradiance * albedo;
+}
+
+Vec3d SpotEmission(const Prepared& prep, const Surface& s, double x, double y) {
+  const Vec3d ray = prep.Ray(x, y);
+  const Vec3d p = ray * (s.d / s.normal.dot(ray));
+  Vec3d out = Vec3d::Zero();
+  for (const int k : s.spots) {
+    const PreparedSpot& ls = prep.laser_spots[static_cast<std::size_t>(k)];
+    if (ls.image_layer) continue;
+    const double d2 = (p - ls.center).squaredNorm();
+    if (d2 > ls.reach * ls.reach) continue;
+    out += ls.peak * std::exp(-0.5 * d2 / (ls.sigma * ls.sigma)) * ls.color;
+  }
+  return out;
+}
+
+}  // namespace idi::sim::internal
