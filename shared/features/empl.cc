@@ -770,7 +770,7 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
   std::vector<double> prev_a = a, prev_b = b;
   Eigen::Matrix3d prev_s = s_mat;
   double outlier_cut = std::numeric_limits<double>::infinity();
-  for (int iter = 0; iter < 8; ++iter) {
+  for (int iter = 0; iter < 6; ++iter) {
     for (ChunkAcc& ck : chunks) {
       ck = ChunkAcc{};
     }
@@ -871,7 +871,8 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
       outlier_cut = 5.0 * std::sqrt(rss / static_cast<double>(px.size()));
       prev_rss = std::numeric_limits<double>::infinity();  // the cut changes the residual set
     }
-    if (iter >= 1 && std::fabs(dg(1)) < 2e-4 && std::fabs(dg(0)) < 2e-6 && std::fabs(dg(2)) < 2e-3) {
+    // Converged when the last step is far below the noise (the step itself is applied).
+    if (iter >= 1 && std::fabs(dg(1)) < 1e-3 && std::fabs(dg(0)) < 1e-5 && std::fabs(dg(2)) < 1e-2) {
       break;
     }
   }

@@ -199,7 +199,7 @@ std::vector<HoughSegment> HoughLineFinder::Find(const GradientImages& g, EdgeMap
   }
 
   // Peak candidates: local maxima whose score (three offset bins) reaches the minimum.
-  const int min_score = std::max(3, static_cast<int>(0.6 * options.min_length_px * options.min_fill));
+  const int min_score = std::max(3, static_cast<int>(0.8 * options.min_length_px * options.min_fill));
   auto score_at = [&](int t, int r) {
     const std::uint16_t* row = &acc_[static_cast<std::size_t>(t) * static_cast<std::size_t>(n_r_)];
     return static_cast<int>(row[r - 1]) + row[r] + row[r + 1];
