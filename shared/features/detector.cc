@@ -230,6 +230,9 @@ Result<FeatureDetector> FeatureDetector::Create(const FeatureOptions& options, c
     }
     impl->camera = camera;
     impl->geometry = PixelGeometry(*camera);
+    if (!impl->geometry.valid()) {
+      return InvalidArgument("camera distortion cannot be inverted over the whole image (k1..k3, p1, p2 out of range)");
+    }
   }
   return FeatureDetector(std::move(impl));
 }

@@ -140,6 +140,14 @@ TEST(DetectorTest, BadInputAndBadOptionsAreRejected) {
   ASSERT_TRUE(det.ok());
   const auto wrong_size = det->Detect(cv::Mat(100, 100, CV_8U, cv::Scalar(0)));
   EXPECT_NE(wrong_size.status().message().find("camera model is 640 x 480"), std::string::npos);
+  // A distortion no lens has (the radial map folds over inside the image) is refused up front.
+  CameraModel folded;
+  folded.width = 160;
+  folded.height = 120;
+  folded.params = {200, 200, 79.5, 59.5, -5.0, 0, 0, 0, 0};
+  const auto bad = FeatureDetector::Create(FeatureOptions{}, folded);
+  EXPECT_EQ(bad.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(bad.status().message().find("cannot be inverted"), std::string::npos) << bad.status().message();
 }
 
 }  // namespace

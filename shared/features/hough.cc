@@ -53,7 +53,11 @@ void HoughLineFinder::Vote(int index, int delta) {
       t -= n_theta_;
     }
     const float r = x * cos_[static_cast<std::size_t>(t)] + y * sin_[static_cast<std::size_t>(t)];
-    const int rb = static_cast<int>(r * inv_step + r0);
+    const float fb = r * inv_step + r0;
+    if (!(fb >= 0.0f && fb < static_cast<float>(n_r_))) {
+      continue;  // only under extreme distortion: outside the accumulator
+    }
+    const int rb = static_cast<int>(fb);
     std::uint16_t& cell = acc_[static_cast<std::size_t>(t) * static_cast<std::size_t>(n_r_) + static_cast<std::size_t>(rb)];
     cell = static_cast<std::uint16_t>(cell + delta);
   }

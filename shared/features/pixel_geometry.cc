@@ -15,6 +15,14 @@ PixelGeometry::PixelGeometry(const CameraModel& camera) {
     cv::Vec2f* row = map_.ptr<cv::Vec2f>(y);
     for (int x = 0; x < camera.width; ++x) {
       const Vec2d u = UndistortPixel(camera, Vec2d(x, y));
+      // The round trip must come back to the pixel, or the model is not invertible here.
+      const Vec2d back = Distorted(u);
+      if (!u.allFinite() || !back.allFinite() || (back - Vec2d(x, y)).norm() > 0.01 ||
+          std::fabs(u.x()) > 1e6 || std::fabs(u.y()) > 1e6) {
+        valid_ = false;
+        row[x] = cv::Vec2f(static_cast<float>(x), static_cast<float>(y));
+        continue;
+      }
       row[x] = cv::Vec2f(static_cast<float>(u.x()), static_cast<float>(u.y()));
     }
   }

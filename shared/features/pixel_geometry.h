@@ -17,6 +17,8 @@ class PixelGeometry {
   explicit PixelGeometry(const CameraModel& camera);
 
   bool identity() const { return !camera_.has_value(); }
+  // False when the distortion could not be inverted at some pixel (a model no lens has).
+  bool valid() const { return valid_; }
 
   // Fit coordinates of an integer pixel.
   Vec2d ToFit(int x, int y) const {
@@ -35,6 +37,7 @@ class PixelGeometry {
   Vec2d Distorted(const Vec2d& fit) const;
   std::optional<CameraModel> camera_;
   cv::Mat map_;  // CV_32FC2, undistorted coordinates of each pixel
+  bool valid_ = true;
 };
 
 }  // namespace idi
