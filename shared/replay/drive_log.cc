@@ -1,0 +1,103 @@
+#include "shared/replay/drive_log.h"
+
+#include <filesystem>
+#include <map>
+
+namespace idi::replay {
+
+namespace fs = std::filesystem;
+
+Result<std::unique_ptr<DriveLogWriter>> DriveLogWriter::Create(const std::string& dir, const RecordingHeader& header) {
+  RecordingHeader h = header;
+  h.kind = kDriveLogKind;
+  IDI_ASSIGN_OR_RETURN(RecordingWriter rec, RecordingWriter::Create(dir, h));
+  CandumpWriterOptions can_options;
+  can_options.mark_direction = true;
+  IDI_ASSIGN_OR_RETURN(std::unique_ptr<CandumpWriter> can, CandumpWriter::Open((fs::path(dir) / kDriveLogCanFile).string(), can_options));
+  return std::unique_ptr<DriveLogWriter>(new DriveLogWriter(std::move(rec), std::move(can)));
+}
+
+DriveLogWriter::~DriveLogWriter() = default;
+
+Status DriveLogWriter::AddFrame(const hal::Image& image) {
+  return recording_.AddImage(image.timestamp_ns, image.camera, image.sequence, image.pixels);
+}
+
+Status DriveLogWriter::AddDelivered(int64_t t_ns, const std::string& camera, uint64_t seq) {
+  return recording_.Add(t_ns, {{"type", "delivered"}, {"camera", camera}, {"seq", seq}});
+}
+
+Status DriveLogWriter::AddTick(const DriveTickRecord& t) {
+  return recording_.Add(t.t_ns, {{"type", "tick"},
+                                 {"left_seq", t.left_seq},
+                                 {"right_seq", t.right_seq},
+                                 {"speed_mps", t.speed_mps},
+                                 {"yaw_rate_rps", t.yaw_rate_rps},
+                                 {"decision", t.decision},
+                                 {"state", t.state}});
+}
+
+Status DriveLogWriter::Finish(const nlohmann::json& final_meta) {
+  IDI_RETURN_IF_ERROR(can_->Close());
+  return recording_.Finish(final_meta);
+}
+
+Result<DriveLog> ReadDriveLog(const std::string& dir) {
+  if (!fs::is_directory(dir)) return NotFound(dir + ": no such log directory");
+  DriveLog log;
+  IDI_ASSIGN_OR_RETURN(log.recording, ReadRecording(dir));
+  if (log.recording.header.kind != kDriveLogKind) {
+    return ParseError(dir + "/recording.json: kind is '" + log.recording.header.kind + "', expected '" + kDriveLogKind + "'");
+  }
+  const std::string events = dir + "/events.jsonl";
+  std::map<std::pair<std::string, uint64_t>, std::size_t> frame_index;
+  for (std::size_t i = 0; i < log.recording.events.size(); ++i) {
+    const nlohmann::json& e = log.recording.events[i];
+    const std::string where = events + ": event " + std::to_string(i + 1);
+    const std::string type = e.value("type", "");
+    try {
+      if (type == "image") {
+        DriveFrameRecord f;
+        f.camera = e.at("camera").get<std::string>();
+        f.seq = e.at("seq").get<uint64_t>();
+        f.exposure_ns = e.at("t_ns").get<int64_t>();
+        f.event = i;
+        frame_index[{f.camera, f.seq}] = log.frames.size();
+        log.frames.push_back(f);
+      } else if (type == "delivered") {
+        const auto it = frame_index.find({e.at("camera").get<std::string>(), e.at("seq").get<uint64_t>()});
+        if (it == frame_index.end()) return ParseError(where + ": delivery of a frame that was never recorded");
+        log.frames[it->second].delivered_ns = e.at("t_ns").get<int64_t>();
+      } else if (type == "tick") {
+        DriveTickRecord t;
+        t.t_ns = e.at("t_ns").get<int64_t>();
+        t.left_seq = e.at("left_seq").get<int64_t>();
+        t.right_seq = e.at("right_seq").get<int64_t>();
+        t.speed_mps = e.at("speed_mps").get<double>();
+        t.yaw_rate_rps = e.at("yaw_rate_rps").get<double>();
+        t.decision = e.at("decision").get<std::string>();
+        t.state = e.at("state").get<std::string>();
+        log.ticks.push_back(std::move(t));
+      }
+    } catch (const nlohmann::json::exception& ex) {
+      return ParseError(where + " (" + type + "): " + ex.what());
+    }
+  }
+  const std::string can_path = (fs::path(dir) / kDriveLogCanFile).string();
+  if (!fs::exists(can_path)) return NotFound(can_path + ": the drive log has no CAN log");
+  IDI_ASSIGN_OR_RETURN(log.can, ReadCandumpFile(can_path));
+  return log;
+}
+
+Result<hal::Image> LoadDriveFrame(const DriveLog& log, const DriveFrameRecord& frame) {
+  if (frame.event >= log.recording.events.size()) return InvalidArgument("drive log: frame event index out of range");
+  IDI_ASSIGN_OR_RETURN(cv::Mat pixels, LoadRecordedImage(log.recording, log.recording.events[frame.event]));
+  hal::Image img;
+  img.timestamp_ns = frame.exposure_ns;
+  img.sequence = frame.seq;
+  img.camera = frame.camera;
+  img.pixels = std::move(pixels);
+  return img;
+}
+
+}  // namespace idi::replay

@@ -1,0 +1,90 @@
+#include "shared/replay/drive_log.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+namespace idi::replay {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string TempDir(const std::string& name) {
+  const fs::path p = fs::temp_directory_path() / ("idi_drive_log_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(p);
+  return p.string();
+}
+
+TEST(DriveLogTest, WritesAndReadsFramesTicksAndCan) {
+  const std::string dir = TempDir("roundtrip");
+  RecordingHeader header;
+  header.meta = {{"start_ns", 1000}};
+  auto writer = DriveLogWriter::Create(dir, header);
+  ASSERT_TRUE(writer.ok()) << writer.status().ToString();
+  hal::Image img;
+  img.camera = "left";
+  img.sequence = 7;
+  img.timestamp_ns = 5'000'000;
+  img.pixels = cv::Mat(4, 6, CV_8UC1);
+  for (int i = 0; i < 24; ++i) img.pixels.data[i] = static_cast<uint8_t>(i * 10);
+  ASSERT_TRUE((*writer)->AddFrame(img).ok());
+  ASSERT_TRUE((*writer)->AddDelivered(35'000'000, "left", 7).ok());
+  ASSERT_TRUE((*writer)->AddTick({40'000'000, 7, -1, 0.25, -0.5, "drive", "follow"}).ok());
+  hal::CanFrame f;
+  f.timestamp_ns = 40'000'000;
+  f.id = 0x413;
+  f.dlc = 8;
+  ASSERT_TRUE((*writer)->can_log()->Write(f, CanDirection::kTransmitted).ok());
+  ASSERT_TRUE((*writer)->Finish({{"start_ns", 1000}, {"ticks", 1}}).ok());
+
+  auto log = ReadDriveLog(dir);
+  ASSERT_TRUE(log.ok()) << log.status().ToString();
+  ASSERT_EQ(log->frames.size(), 1u);
+  EXPECT_EQ(log->frames[0].seq, 7u);
+  EXPECT_EQ(log->frames[0].exposure_ns, 5'000'000);
+  EXPECT_EQ(log->frames[0].delivered_ns, 35'000'000);
+  ASSERT_EQ(log->ticks.size(), 1u);
+  EXPECT_EQ(log->ticks[0].left_seq, 7);
+  EXPECT_EQ(log->ticks[0].right_seq, -1);
+  EXPECT_DOUBLE_EQ(log->ticks[0].yaw_rate_rps, -0.5);
+  EXPECT_EQ(log->ticks[0].decision, "drive");
+  ASSERT_EQ(log->can.size(), 1u);
+  EXPECT_EQ(log->can[0].frame.id, 0x413u);
+  EXPECT_EQ(log->can[0].direction, CanDirection::kTransmitted);
+  EXPECT_EQ(log->recording.header.meta.value("ticks", 0), 1);
+  // Lossless: the image comes back bit for bit.
+  auto back = LoadDriveFrame(*log, log->frames[0]);
+  ASSERT_TRUE(back.ok());
+  EXPECT_EQ(cv::norm(back->pixels, img.pixels, cv::NORM_INF), 0.0);
+  EXPECT_EQ(back->timestamp_ns, 5'000'000);
+  fs::remove_all(dir);
+}
+
+TEST(DriveLogTest, NamesWhatIsWrong) {
+  EXPECT_EQ(ReadDriveLog("/nonexistent/idi/log").status().code(), StatusCode::kNotFound);
+  // Another kind of recording.
+  const std::string dir = TempDir("kind");
+  RecordingHeader header;
+  header.kind = "scan";
+  ASSERT_TRUE(RecordingWriter::Create(dir, header).ok());
+  auto log = ReadDriveLog(dir);
+  ASSERT_FALSE(log.ok());
+  EXPECT_NE(log.status().message().find("rmp-drive"), std::string::npos);
+  fs::remove_all(dir);
+  // A delivery of an unknown frame, and a tick without its fields.
+  const std::string bad = TempDir("bad");
+  {
+    auto w = DriveLogWriter::Create(bad, {});
+    ASSERT_TRUE(w.ok());
+    ASSERT_TRUE((*w)->AddDelivered(1, "left", 3).ok());
+    ASSERT_TRUE((*w)->Finish({}).ok());
+  }
+  auto l2 = ReadDriveLog(bad);
+  ASSERT_FALSE(l2.ok());
+  EXPECT_NE(l2.status().message().find("never recorded"), std::string::npos);
+  fs::remove_all(bad);
+}
+
+}  // namespace
+}  // namespace idi::replay
