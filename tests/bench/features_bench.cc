@@ -714,6 +714,14 @@ void SectionD(bool quick) {
         if (bd < 2.0) {
           ++found;
           err.Add(bd);
+        } else if (std::getenv("FEATURES_BENCH_VERBOSE")) {
+          std::printf("  missed %s corner of %s at %.1f,%.1f (nearest IDI point %.2f px); lines:", j.type.c_str(),
+                      j.object.c_str(), t.x(), t.y(), bd);
+          for (int id : j.lines) {
+            auto it = lines.find(id);
+            if (it != lines.end()) std::printf(" [%.0f px, %.0f DN]", it->second->length_px, it->second->contrast_dn);
+          }
+          std::printf("\n");
         }
       }
       for (const IdiPoint& p : r->points) {
@@ -721,6 +729,10 @@ void SectionD(bool quick) {
         double bd = 1e9;
         for (const Vec2d& t : all_junctions) bd = std::min(bd, (p.xy - t).norm());
         spurious += bd > 3.0 ? 1 : 0;
+        if (bd > 3.0 && std::getenv("FEATURES_BENCH_VERBOSE")) {
+          std::printf("  spurious point at %.1f,%.1f (%zu lines, nearest junction %.1f px)\n", p.xy.x(), p.xy.y(),
+                      p.line_ids.size(), bd);
+        }
       }
     }
     std::printf("| %d | %s | %s | %.0f | %d | %d | %.3f | %d | %d | %.3f | %.3f |\n", scenes, c.clutter ? "texture" : "none",
