@@ -103,11 +103,25 @@ Result<std::vector<Joints>> PlanAimConfigurations(const ParamSet& robot, const P
   return out;
 }
 
+std::vector<double> FileUnitWeights() {
+  const std::vector<ParamSpec> specs = RobotCalibrationSpecs();
+  std::vector<double> w;
+  for (std::size_t i = 0; i < specs.size(); ++i) {
+    const bool point = i >= kRx130ParamCount + kLaserParamCount && i < kRx130ParamCount + kLaserParamCount + 3;
+    w.push_back(point ? 0.0 : (specs[i].unit == Unit::kDegree ? kDegPerRad * kDegPerRad : 1.0));
+  }
+  return w;
+}
+
 Result<SelectionResult> SelectForConditioning(const RobotCalibrationData& pool, const ParamSet& params,
-                                              const RobotNoiseModel& noise, int per_set) {
+                                              const RobotNoiseModel& noise, int per_set,
+                                              const std::vector<double>& a_weights) {
   if (per_set <= 0) return InvalidArgument("selection: per_set must be positive");
   IDI_ASSIGN_OR_RETURN(const Eigen::MatrixXd j_all, RobotReadingJacobians(pool, params, noise));
   const Eigen::Index n = j_all.cols();
+  if (!a_weights.empty() && static_cast<Eigen::Index>(a_weights.size()) != n) {
+    return InvalidArgument("selection: expected one A-optimal weight per unknown");
+  }
   // Scale the unknowns to unit information over the whole pool (log det gains do not depend on it,
   // but the conditioning of the updates does).
   Eigen::VectorXd scale = j_all.colwise().norm().transpose();
@@ -137,22 +151,41 @@ Result<SelectionResult> SelectForConditioning(const RobotCalibrationData& pool, 
     }
     out.condition_number_first = ScaledConditionNumber(info);
   }
-  // Lazy greedy D-optimal design: gains of log det only shrink as the design grows (submodular), so a
-  // stale gain is an upper bound and only the top of each queue needs re-evaluating.
+  // A-optimal weights in the scaled unknowns: w_i scale_i^2.
+  Eigen::VectorXd wa = Eigen::VectorXd::Zero(n);
+  for (Eigen::Index k = 0; k < static_cast<Eigen::Index>(a_weights.size()); ++k) wa(k) = a_weights[static_cast<std::size_t>(k)] * scale(k) * scale(k);
+  const int d_picks = a_weights.empty() ? 2 * per_set : std::min(2 * per_set, 2 * static_cast<int>(n));
+  // Lazy greedy: log det gains only shrink as the design grows (submodular), so a stale gain bounds the
+  // fresh one and only the top of each queue needs re-evaluating; the A-optimal gains are treated the
+  // same way (they shrink too, up to the occasional exception, which costs a slightly worse pick).
   const double eps = 1e-6;
   Eigen::MatrixXd m_inv = Eigen::MatrixXd::Identity(n, n) / eps;
   Eigen::MatrixXd info = eps * Eigen::MatrixXd::Identity(n, n);
+  bool a_phase = false;
   auto gain = [&](int i) {
     const auto b = js.middleRows<2>(2 * static_cast<Eigen::Index>(i));
-    const Eigen::Matrix2d s = Eigen::Matrix2d::Identity() + b * m_inv * b.transpose();
-    return std::log(s.determinant());
+    const Eigen::Matrix<double, 2, Eigen::Dynamic> u = b * m_inv;
+    const Eigen::Matrix2d s = Eigen::Matrix2d::Identity() + u * b.transpose();
+    if (!a_phase) return std::log(s.determinant());
+    return (s.inverse() * (u * wa.asDiagonal() * u.transpose())).trace();
   };
   using Entry = std::pair<double, int>;
   std::array<std::priority_queue<Entry>, 2> queues;
-  for (int s = 0; s < 2; ++s) {
-    for (int i : by_set[static_cast<std::size_t>(s)]) queues[static_cast<std::size_t>(s)].push({gain(i), i});
-  }
+  std::vector<bool> taken(pool.readings.size(), false);
+  auto fill = [&]() {
+    for (int s = 0; s < 2; ++s) {
+      queues[static_cast<std::size_t>(s)] = {};
+      for (int i : by_set[static_cast<std::size_t>(s)]) {
+        if (!taken[static_cast<std::size_t>(i)]) queues[static_cast<std::size_t>(s)].push({gain(i), i});
+      }
+    }
+  };
+  fill();
   for (int step = 0; step < 2 * per_set; ++step) {
+    if (step == d_picks && !a_weights.empty()) {
+      a_phase = true;
+      fill();
+    }
     auto& q = queues[static_cast<std::size_t>(step % 2)];
     int pick = -1;
     while (pick < 0) {
@@ -170,6 +203,7 @@ Result<SelectionResult> SelectForConditioning(const RobotCalibrationData& pool, 
     const Eigen::Matrix2d s = Eigen::Matrix2d::Identity() + b * mb;
     m_inv -= mb * s.inverse() * mb.transpose();
     info += b.transpose() * b;
+    taken[static_cast<std::size_t>(pick)] = true;
     out.chosen.push_back(pick);
   }
   out.condition_number = ScaledConditionNumber(info - eps * Eigen::MatrixXd::Identity(n, n));

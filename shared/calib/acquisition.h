@@ -43,11 +43,18 @@ struct SelectionResult {
   double condition_number_first = 0;  // of the first `count` candidates (what no selection would give)
 };
 
-// Persistent excitation: picks `per_set` readings of each set from `pool` (greedy D-optimal: each step
-// adds the reading that most increases log det of the information matrix of the 27 unknowns at
-// `params`, lazily re-evaluated) and reports the condition number of the result.
+// Persistent excitation: picks `per_set` readings of each set from `pool` at `params` and reports the
+// condition number of the information matrix of the 27 unknowns. Greedy, lazily re-evaluated: the
+// first 2 x 27 picks maximise log det of the information (D-optimal: every unknown gets determined);
+// the rest minimise the sum of the variances weighted by `a_weights` (A-optimal: the parameters worst
+// determined get the readings; e.g. 1/unit^2 per parameter, 0 for the point). Without weights,
+// D-optimal throughout.
 Result<SelectionResult> SelectForConditioning(const RobotCalibrationData& pool, const ParamSet& params,
-                                              const RobotNoiseModel& noise, int per_set);
+                                              const RobotNoiseModel& noise, int per_set,
+                                              const std::vector<double>& a_weights = {});
+// A-optimal weights in the calibration files' units (deg, mm) for the robot, laser and rail direction
+// unknowns; the point (a nuisance) gets none.
+std::vector<double> FileUnitWeights();
 
 // The camera's view: the spot's position on the observation plane, in the plane's x, y (mm).
 using SpotObserver = std::function<Result<Vec2d>()>;

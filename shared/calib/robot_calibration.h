@@ -50,7 +50,9 @@ struct RobotNoiseModel {
   double spot_sigma_mm = 0.05;          // spot on the observation plane, per in-plane axis
   std::optional<Vec3d> plane_normal;    // observation plane normal in the base frame; none: normal to the beam
   bool encoder_rounding = true;         // joint readings uncertain by +-1/2 count (Table 4.2)
-  double distance_sigma_mm = 0.1;       // std of the known distance D (rail repeatability, §4.4.3)
+  // Std of the known distance D (§4.4.3): D is the difference of two rail moves, each landing within
+  // 0.1 mm (std) of its command: sqrt(2) x 0.1 mm.
+  double distance_sigma_mm = 0.1414;
   Status Check() const;
 };
 

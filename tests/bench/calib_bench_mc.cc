@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <cmath>
 #include <map>
 #include <set>
@@ -107,6 +108,8 @@ Result<RobotTrial> RunRobotTrial(const Scenario& sc, unsigned seed, int readings
   to.spot_sigma_mm = sc.spot_sigma;
   to.spot_noise = sc.spot_noise;
   to.rail_repeatability_mm = sc.rail_rep;
+  if (const char* e = std::getenv("IDI_MC_WALL_MIN")) to.wall_distance_min_mm = std::atof(e);
+  if (const char* e = std::getenv("IDI_MC_WALL_MAX")) to.wall_distance_max_mm = std::atof(e);
   std::unique_ptr<sim::WorkcellTwin> own;
   sim::WorkcellTwin* twin = external;
   if (!twin) {
@@ -119,6 +122,9 @@ Result<RobotTrial> RunRobotTrial(const Scenario& sc, unsigned seed, int readings
   ao.per_set = readings / 2;
   ao.seed = seed;
   ao.loop.tolerance_mm = sc.loop_tolerance;
+  if (const char* e = std::getenv("IDI_MC_POOL")) ao.pool_factor = std::atof(e);
+  if (const char* e = std::getenv("IDI_MC_NEAR")) ao.plan.near_deg = std::atof(e);
+  if (const char* e = std::getenv("IDI_MC_DOPT")) ao.a_optimal = std::atoi(e) == 0;
   const CellSetup setup = SetupOf(*twin);
   IDI_ASSIGN_OR_RETURN(const workcell::RobotAcquisition acq, workcell::AcquireRobotData(dev, arm, setup, calib::ArmModel{}, ao));
   calib::RobotCalibrationOptions co;
@@ -126,7 +132,7 @@ Result<RobotTrial> RunRobotTrial(const Scenario& sc, unsigned seed, int readings
   co.noise.plane_normal = acq.plane_normal_in_base;
   IDI_ASSIGN_OR_RETURN(const calib::RobotCalibrationResult r, calib::CalibrateRobot(acq.data, co));
   // Truth.
-  const sim::Wall& wall = twin->walls()[0];
+  const sim::Wall& wall = twin->walls()[static_cast<std::size_t>(acq.wall)];
   const Vec3d p_world = wall.world_from_wall * Vec3d(acq.targets_on_wall[0].x(), acq.targets_on_wall[0].y(), 0.0);
   const ParamSet& tr = twin->true_rail(arm);
   auto world_from_base = [&](double rail_mm) {

@@ -21,7 +21,7 @@ struct RobotCommandOptions {
   std::string observations, method = "translate", out, validate, report, plots;
   double distance_mm = 0;
   double spot_sigma_mm = 0.05;
-  double distance_sigma_mm = 0.1;
+  double distance_sigma_mm = 0.1414;  // two rail moves of 0.1 mm repeatability
   bool sim = false;
   unsigned seed = 1;
   int arm = 1;
@@ -386,7 +386,7 @@ void AddCalibrateCommand(CliApp& cli) {
   robot->add_option("--plots", ro->plots, "folder for PNG plots (cost per iteration, held-out spread)");
   robot->add_option("--spot-sigma-mm", ro->spot_sigma_mm, "spot noise on the wall per axis (noise model; twin camera)")
       ->capture_default_str();
-  robot->add_option("--distance-sigma-mm", ro->distance_sigma_mm, "std of D (rail repeatability)")->capture_default_str();
+  robot->add_option("--distance-sigma-mm", ro->distance_sigma_mm, "std of D (translate: two rail moves, sqrt(2) x their repeatability)")->capture_default_str();
   robot->add_flag("--sim", ro->sim, "run the whole procedure, acquisition included, in the digital twin");
   robot->add_option("--seed", ro->seed, "digital twin seed")->capture_default_str();
   robot->add_option("--arm", ro->arm, "which robot (--sim)")->check(CLI::Range(1, 2))->capture_default_str();

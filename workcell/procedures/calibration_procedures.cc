@@ -6,6 +6,7 @@
 #include <Eigen/Eigenvalues>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "shared/optim/vicki_costs.h"
@@ -61,8 +62,8 @@ void ProgressLog::operator()(int done, int total) {
 Status RobotAcquisitionOptions::Check() const {
   IDI_RETURN_IF_ERROR(plan.Check());
   IDI_RETURN_IF_ERROR(loop.Check());
-  if (!(distance_mm > 0) || per_set < 10 || !(pool_factor >= 1) || held_out < 0 || wall < 0 ||
-      !(max_failure_fraction >= 0 && max_failure_fraction < 1)) {
+  if (!(distance_mm > 0) || per_set < 10 || !(pool_factor >= 1) || held_out < 0 ||
+      !(max_failure_fraction >= 0 && max_failure_fraction < 1) || wall < -1 || !(preferred_wall_distance_mm > 0)) {
     return InvalidArgument("robot acquisition: invalid options (distance > 0, at least 10 readings per set, ...)");
   }
   return Status::Ok();
@@ -91,7 +92,24 @@ Result<RobotAcquisition> AcquireRobotData(ArmDevices& dev, int arm_index, const 
   }
   const bool translate = o.method == calib::TranslationMethod::kTranslate;
   const std::array<double, 2> rail_mm = {o.rail_start_mm, o.rail_start_mm + (translate ? o.distance_mm : 0.0)};
-  const Rigid3d& world_from_wall = setup.world_from_wall[static_cast<std::size_t>(o.wall)];
+  RobotAcquisition out;
+  out.wall = o.wall;
+  if (out.wall < 0) {
+    const Vec3d base = NominalWorldFromBase(arm_index, model, setup, rail_mm[0]).translation;
+    double best = std::numeric_limits<double>::infinity();
+    for (std::size_t w = 0; w < setup.world_from_wall.size(); ++w) {
+      const Rigid3d& wf = setup.world_from_wall[w];
+      if (std::abs(wf.rotation(2, 2)) > 0.5) continue;  // floors and ceilings
+      const double dist = std::abs((wf.Inverse() * base).z());
+      if (std::abs(dist - o.preferred_wall_distance_mm) < best) {
+        best = std::abs(dist - o.preferred_wall_distance_mm);
+        out.wall = static_cast<int>(w);
+      }
+    }
+    if (out.wall < 0) return InvalidArgument("robot acquisition: the setup has no upright wall to observe the spot on");
+  }
+  const int wall = out.wall;
+  const Rigid3d& world_from_wall = setup.world_from_wall[static_cast<std::size_t>(wall)];
   // The targets: on the wall near the middle of the arm's base positions; the second point D further
   // along the wall for the two-points method.
   const Vec3d base_mid = NominalWorldFromBase(arm_index, model, setup, 0.5 * (rail_mm[0] + rail_mm[1])).translation;
@@ -104,8 +122,8 @@ Result<RobotAcquisition> AcquireRobotData(ArmDevices& dev, int arm_index, const 
     base_from_wall[s] = NominalWorldFromBase(arm_index, model, setup, rail_mm[s]).Inverse() * world_from_wall;
     point_in_base[s] = base_from_wall[s] * Vec3d(targets[s].x(), targets[s].y(), 0.0);
   }
-  RobotAcquisition out;
   out.plane_normal_in_base = base_from_wall[0].rotation.col(2);
+  out.targets_on_wall = targets;
   out.approx_point_in_base = point_in_base[0];
   const JointLimits limits = Rx130JointLimits();
 
@@ -134,7 +152,7 @@ Result<RobotAcquisition> AcquireRobotData(ArmDevices& dev, int arm_index, const 
   IDI_ASSIGN_OR_RETURN(out.selection,
                        calib::SelectForConditioning(
                            pool, calib::PackRobotCalibration(model.robot, model.laser, point_in_base[0], rail_dir), noise,
-                           o.per_set));
+                           o.per_set, o.a_optimal ? calib::FileUnitWeights() : std::vector<double>{}));
   spdlog::info("robot {}: chose {} of {} planned configurations; information matrix condition number {:.3g} (first {}: {:.3g})",
                arm_index + 1, out.selection.chosen.size(), pool.readings.size(), out.selection.condition_number,
                out.selection.chosen.size(), out.selection.condition_number_first);
@@ -147,7 +165,7 @@ Result<RobotAcquisition> AcquireRobotData(ArmDevices& dev, int arm_index, const 
   ProgressLog progress(fmt::format("robot {}: aiming", arm_index + 1));
   auto aim = [&](const Rigid3d& bfw, const Vec2d& target, const Joints& start) -> Result<Joints> {
     auto move = [&](const Joints& q) { return MoveAndRead(*dev.arm, q); };
-    auto observe = [&]() { return dev.observe(o.wall); };
+    auto observe = [&]() { return dev.observe(wall); };
     const auto r = calib::AimClosedLoop(model.robot, model.laser, bfw, target, start, limits, move, observe, o.loop);
     if (!r.ok()) return r.status();
     iterations += r->iterations;
@@ -173,6 +191,7 @@ Result<RobotAcquisition> AcquireRobotData(ArmDevices& dev, int arm_index, const 
   // Held-out readings at another point, at the last rail position.
   if (o.held_out > 0) {
     const Vec2d target_h = targets[1] + Vec2d(-400.0, -250.0);
+    out.held_out_target_on_wall = target_h;
     const Vec3d p = base_from_wall[1] * Vec3d(target_h.x(), target_h.y(), 0.0);
     calib::PlanOptions po = o.plan;
     po.seed = o.seed * 7u + 5u;

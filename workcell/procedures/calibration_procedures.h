@@ -49,9 +49,13 @@ struct RobotAcquisitionOptions {
   double distance_mm = 1000.0;      // rail move (translate) or spacing of the two points on the wall
   double rail_start_mm = 0.0;
   int per_set = 270;                // 540 readings in all (20 x 27, §4.5.3)
-  double pool_factor = 2.5;         // candidates planned per reading kept (for the selection)
+  double pool_factor = 4.0;         // candidates planned per reading kept (for the selection)
+  bool a_optimal = true;            // after the first 54 D-optimal picks, A-optimal (file units)
   int held_out = 60;                // extra readings at one other point, for §4.5.4's evaluation
-  int wall = 0;
+  // The observation wall; -1: the upright wall whose distance from the base is nearest
+  // `preferred_wall_distance_mm` (§4.4.2: about 3 m is best for a camera observing the spot).
+  int wall = -1;
+  double preferred_wall_distance_mm = 3000.0;
   Vec2d target_offset_mm{200.0, 300.0};  // from the wall point nearest the base, in wall coordinates
   unsigned seed = 1;
   calib::PlanOptions plan;
@@ -63,8 +67,11 @@ struct RobotAcquisitionOptions {
 struct RobotAcquisition {
   calib::RobotCalibrationData data;
   std::vector<Joints> held_out;        // readings aimed at one held-out point
+  int wall = 0;                                  // the wall observed
   Vec3d plane_normal_in_base = Vec3d::UnitZ();  // approximate, for the noise model
   Vec3d approx_point_in_base = Vec3d::Zero();
+  std::array<Vec2d, 2> targets_on_wall{};  // the points aimed at (set 1, set 2), wall coordinates
+  Vec2d held_out_target_on_wall = Vec2d::Zero();
   calib::SelectionResult selection;
   double mean_loop_iterations = 0;
   int loop_failures = 0;
