@@ -10,6 +10,9 @@
 // realistic case with chapter-4-calibrated arms, separately and solved together with the rail.
 //
 // Usage: calib_bench_mc [trials=20] [robot|rail|joint|all] [readings=540]
+// Environment: IDI_MC_SCENARIO=precise|encoder|realistic (robot: only that one), IDI_MC_POOL (candidates
+// per reading), IDI_MC_NEAR (planning cone, deg), IDI_MC_DOPT=1 (D-optimal selection only),
+// IDI_MC_WALL_MIN / IDI_MC_WALL_MAX (wall distances, mm).
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -200,7 +203,9 @@ double Std(const std::vector<double>& v) {
 
 void RobotStudy(int trials, int readings) {
   const std::vector<ParamSpec> specs = calib::RobotCalibrationSpecs();
+  const char* only = std::getenv("IDI_MC_SCENARIO");  // e.g. "realistic": run just that one
   for (const Scenario& sc : RobotScenarios()) {
+    if (only != nullptr && sc.name != only) continue;
     std::vector<RobotTrial> ts;
     int failures = 0;
     for (int k = 0; k < trials; ++k) {
