@@ -105,6 +105,17 @@ std::shared_ptr<const PixelGrid> BuildPixelGrid(const CameraModel& camera, int m
         have_guess = true;
       }
     }
+    grid->centers.resize(static_cast<std::size_t>(grid->cols) * static_cast<std::size_t>(grid->rows));
+    grid->footprints.resize(grid->centers.size());
+    for (int j = 0; j < grid->rows; ++j) {
+      for (int i = 0; i < grid->cols; ++i) {
+        const Vec2d q[4] = {grid->Corner(i, j), grid->Corner(i + 1, j), grid->Corner(i + 1, j + 1), grid->Corner(i, j + 1)};
+        const std::size_t k = static_cast<std::size_t>(j) * static_cast<std::size_t>(grid->cols) + static_cast<std::size_t>(i);
+        grid->centers[k] = (q[0] + q[1] + q[2] + q[3]) / 4;
+        const Vec2d d1 = q[2] - q[0], d2 = q[3] - q[1];
+        grid->footprints[k] = std::sqrt(std::abs(d1.x() * d2.y() - d1.y() * d2.x()) / 2);
+      }
+    }
   }
   return grid;
 }
@@ -483,6 +494,14 @@ void AddMesh(Prepared* prep, int mesh_index, const Cylinder* cylinder, int* next
     s.albedo = mat->albedo;
     if (mat->texture.Enabled()) {
       s.texture = &mat->texture;
+      s.texture_plan = -1;
+      for (std::size_t k = 0; k < prep->texture_plans.size(); ++k) {
+        if (prep->texture_plans[k].texture == s.texture) s.texture_plan = static_cast<int>(k);
+      }
+      if (s.texture_plan < 0) {
+        s.texture_plan = static_cast<int>(prep->texture_plans.size());
+        prep->texture_plans.push_back(MakeTexturePlan(mat->texture));
+      }
       // Texture frame: u along the first edge (Prepare replaces it by a solid face's explicit frame).
       const Vec3d n_world = t.rotation.transpose() * m.face_normal_cam[f];
       const Vec3d origin = m.vertices_world[static_cast<std::size_t>(m.faces[f][0])];
@@ -672,6 +691,7 @@ Result<Prepared> Prepare(const Scene& scene, const CameraModel& camera, const Ri
   for (SpotLight s : l.spotlights) {
     s.position = cam_from_world * s.position;
     s.direction = r * s.direction.normalized();
+    s.cone_half_angle_rad = std::cos(s.cone_half_angle_rad);  // Shade wants the cosine
     prep.spotlights.push_back(s);
   }
   prep.gradient = l.gradient;

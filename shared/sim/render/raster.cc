@@ -68,6 +68,44 @@ bool ClipHalfPlane(const ClipPoly& in, double a, double b, double c, ClipPoly* o
   return out->n >= 3;
 }
 
+// Splits `in` by the line a x + b y + c = 0 into the part >= 0 (`pos`) and the part < 0 (`neg`), in one
+// pass. Either may come out with fewer than 3 vertices (empty).
+void SplitHalfPlane(const ClipPoly& in, const Vec3d& h, ClipPoly* pos, ClipPoly* neg) {
+  pos->n = 0;
+  neg->n = 0;
+  std::array<double, kMaxClipVerts> s;
+  int inside = 0;
+  for (int i = 0; i < in.n; ++i) {
+    const Vec2d& v = in.v[static_cast<std::size_t>(i)];
+    s[static_cast<std::size_t>(i)] = h.x() * v.x() + h.y() * v.y() + h.z();
+    if (s[static_cast<std::size_t>(i)] >= 0) ++inside;
+  }
+  if (inside == in.n) {
+    *pos = in;
+    return;
+  }
+  if (inside == 0) {
+    *neg = in;
+    return;
+  }
+  for (int i = 0; i < in.n; ++i) {
+    const int j = i + 1 == in.n ? 0 : i + 1;
+    const double si = s[static_cast<std::size_t>(i)], sj = s[static_cast<std::size_t>(j)];
+    const Vec2d& vi = in.v[static_cast<std::size_t>(i)];
+    IDI_CHECK(pos->n + 1 < kMaxClipVerts && neg->n + 1 < kMaxClipVerts, "clip polygon overflow");
+    if (si >= 0) {
+      pos->v[static_cast<std::size_t>(pos->n++)] = vi;
+    } else {
+      neg->v[static_cast<std::size_t>(neg->n++)] = vi;
+    }
+    if ((si >= 0) != (sj >= 0)) {
+      const Vec2d x = vi + (si / (si - sj)) * (in.v[static_cast<std::size_t>(j)] - vi);
+      pos->v[static_cast<std::size_t>(pos->n++)] = x;
+      neg->v[static_cast<std::size_t>(neg->n++)] = x;
+    }
+  }
+}
+
 double AreaAndCentroid(const ClipPoly& p, Vec2d* centroid) {
   double a2 = 0, cx = 0, cy = 0;
   const Vec2d o = p.v[0];
@@ -233,6 +271,17 @@ class PixelIntegrator {
     return prep_.pieces[static_cast<std::size_t>(active_[static_cast<std::size_t>(front)].piece)];
   }
 
+  // Do all active members of front's group belong to `surface` (a face cut into convex pieces)?
+  bool GroupShares(int front, int surface) const {
+    for (const Active& a : active_) {
+      if (a.group == active_[static_cast<std::size_t>(front)].group &&
+          prep_.pieces[static_cast<std::size_t>(a.piece)].surface != surface) {
+        return false;
+      }
+    }
+    return true;
+  }
+
   bool GroupOfOne(int front) const {
     for (std::size_t k = 0; k < active_.size(); ++k) {
       if (static_cast<int>(k) != front && active_[k].group == active_[static_cast<std::size_t>(front)].group) return false;
@@ -271,11 +320,10 @@ class PixelIntegrator {
   }
 
   // Centre shading of a pixel inside a tile that Classify found covered by one group.
-  Vec3d TilePixel(int front, bool group_of_one, const Vec2d* q) {
-    const Vec2d c = (q[0] + q[1] + q[2] + q[3]) / 4;
+  Vec3d TilePixel(int front, bool group_of_one, const Vec2d& c, double footprint) {
     const int member = group_of_one ? active_[static_cast<std::size_t>(front)].piece : MemberAt(front, c);
     const Piece& p = prep_.pieces[static_cast<std::size_t>(member)];
-    return Radiance(prep_.surfaces[static_cast<std::size_t>(p.surface)], c.x(), c.y(), std::sqrt(QuadArea(q)));
+    return Radiance(prep_.surfaces[static_cast<std::size_t>(p.surface)], c.x(), c.y(), footprint);
   }
 
  private:
@@ -342,35 +390,56 @@ class PixelIntegrator {
     ClipPoly quad;
     quad.n = 4;
     for (int i = 0; i < 4; ++i) quad.v[static_cast<std::size_t>(i)] = q[i];
-    // Make it counter-clockwise in the sense the clipper does not care about (it only uses signs).
-    Vec2d unused;
-    const double area = AreaAndCentroid(quad, &unused);
+    Vec2d quad_centroid;
+    const double area = AreaAndCentroid(quad, &quad_centroid);
     if (!(area > 0)) return background_;
     const double foot = std::sqrt(area);
+    // Depth order of every pair over the quad, once.
+    const std::size_t na = active_.size();
+    order_.assign(na * na, 0);
+    for (std::size_t i = 0; i < na; ++i) {
+      for (std::size_t j = i + 1; j < na; ++j) {
+        const int o = FrontOrder(prep_.pieces[static_cast<std::size_t>(active_[i].piece)],
+                                 prep_.pieces[static_cast<std::size_t>(active_[j].piece)], q, 4);
+        order_[i * na + j] = o;
+        order_[j * na + i] = -o;
+      }
+    }
+    // A piece that covers the whole quad behind every other one takes what the others leave: its
+    // area and centroid follow from theirs, no clipping needed (the common silhouette-over-background
+    // pixel).
+    int back = -1;
+    for (std::size_t i = 0; i < na && back < 0; ++i) {
+      if (active_[i].n_cut != 0) continue;
+      bool behind_all = true;
+      for (std::size_t j = 0; j < na && behind_all; ++j) behind_all = j == i || order_[j * na + i] > 0;
+      if (behind_all) back = static_cast<int>(i);
+    }
     Vec3d sum = Vec3d::Zero();
     double covered = 0;
+    Vec2d moment = Vec2d::Zero();
     ClipPoly tmp;
-    for (std::size_t ia = 0; ia < active_.size(); ++ia) {
+    for (std::size_t ia = 0; ia < na; ++ia) {
+      if (static_cast<int>(ia) == back) continue;
       const Active& aa = active_[ia];
       const Piece& a = prep_.pieces[static_cast<std::size_t>(aa.piece)];
       // Quad clipped to piece a (only the edges that cut the quad matter).
-      ClipPoly start = quad;
+      rest_.clear();
+      rest_.push_back(quad);
       bool empty = false;
       for (int k = 0; k < aa.n_cut && !empty; ++k) {
         const Vec3d& h = a.e[static_cast<std::size_t>(aa.cut[static_cast<std::size_t>(k)])];
-        empty = !ClipHalfPlane(start, h.x(), h.y(), h.z(), &tmp);
-        start = tmp;
+        empty = !ClipHalfPlane(rest_[0], h.x(), h.y(), h.z(), &tmp);
+        if (!empty) std::swap(rest_[0], tmp);
       }
       if (empty) continue;
-      rest_.clear();
-      rest_.push_back(start);
-      for (std::size_t ib = 0; ib < active_.size() && !rest_.empty(); ++ib) {
+      for (std::size_t ib = 0; ib < na && !rest_.empty(); ++ib) {
         if (ib == ia) continue;
-        const Active& bb = active_[ib];
-        const Piece& b = prep_.pieces[static_cast<std::size_t>(bb.piece)];
-        const int order = FrontOrder(b, a, q, 4);
+        const int order = order_[ib * na + ia];
         if (order < 0) continue;
         // Subtract b (where it is in front of a) from every remaining polygon.
+        const Active& bb = active_[ib];
+        const Piece& b = prep_.pieces[static_cast<std::size_t>(bb.piece)];
         half_.clear();
         for (int k = 0; k < bb.n_cut; ++k) half_.push_back(b.e[static_cast<std::size_t>(bb.cut[static_cast<std::size_t>(k)])]);
         if (order == 0) half_.push_back(b.w - a.w);
@@ -383,9 +452,19 @@ class PixelIntegrator {
         if (pa <= 0) continue;
         sum += pa * Radiance(prep_.surfaces[static_cast<std::size_t>(a.surface)], centroid.x(), centroid.y(), foot);
         covered += pa;
+        moment += pa * centroid;
       }
     }
-    if (covered < area) sum += (area - covered) * background_;
+    const double rest_area = area - covered;
+    if (rest_area > 1e-12 * area) {
+      if (back >= 0) {
+        const Vec2d c = (area * quad_centroid - moment) / rest_area;
+        const Piece& b = prep_.pieces[static_cast<std::size_t>(active_[static_cast<std::size_t>(back)].piece)];
+        sum += rest_area * Radiance(prep_.surfaces[static_cast<std::size_t>(b.surface)], c.x(), c.y(), foot);
+      } else {
+        sum += rest_area * background_;
+      }
+    }
     return sum / area;
   }
 
@@ -394,31 +473,30 @@ class PixelIntegrator {
   // number of fragments grows only with real overlaps. Fragments below min_area are dropped.
   void Subtract(double min_area) {
     next_.clear();
-    ClipPoly outside, inside, probe, tmp;
+    ClipPoly buf[2], outside;
+    Vec2d unused;
     for (const ClipPoly& p0 : rest_) {
-      probe = p0;
+      const std::size_t mark = next_.size();
+      const ClipPoly* cur = &p0;
+      int which = 0;
       bool meets = true;
       for (const Vec3d& h : half_) {
-        if (!ClipHalfPlane(probe, h.x(), h.y(), h.z(), &tmp)) {
+        ClipPoly* pos = &buf[which];
+        SplitHalfPlane(*cur, h, pos, &outside);
+        if (outside.n >= 3 && AreaAndCentroid(outside, &unused) > min_area) next_.push_back(outside);
+        if (pos->n < 3) {
           meets = false;
           break;
         }
-        probe = tmp;
+        cur = pos;
+        which ^= 1;
       }
-      Vec2d unused;
-      if (!meets || AreaAndCentroid(probe, &unused) <= min_area) {
+      // The part inside every half-plane is covered by b and dropped; when b does not really meet
+      // p0, keep p0 whole instead of its fragments.
+      if (!meets || AreaAndCentroid(*cur, &unused) <= min_area) {
+        next_.resize(mark);
         next_.push_back(p0);
-        continue;
       }
-      ClipPoly cur = p0;
-      for (const Vec3d& h : half_) {
-        if (ClipHalfPlane(cur, -h.x(), -h.y(), -h.z(), &outside) && AreaAndCentroid(outside, &unused) > min_area) {
-          next_.push_back(outside);
-        }
-        if (!ClipHalfPlane(cur, h.x(), h.y(), h.z(), &inside)) break;
-        cur = inside;
-      }
-      // What is left inside every half-plane is covered by b: dropped.
     }
     rest_.swap(next_);
   }
@@ -433,6 +511,7 @@ class PixelIntegrator {
   int last_member_ = -1;
   std::vector<Active> active_;
   std::vector<ClipPoly> rest_, next_;
+  std::vector<int> order_;
   std::vector<Vec3d> half_;
 };
 
@@ -474,13 +553,13 @@ void RasterizeRadiance(const Prepared& prep, bool color, cv::Mat* out_image) {
       if (front >= 0) {
         const bool one = integrator.GroupOfOne(front);
         const Surface& fs = prep.surfaces[static_cast<std::size_t>(integrator.FrontPiece(front).surface)];
+        const bool uniform = fs.constant && integrator.GroupShares(front, integrator.FrontPiece(front).surface);
         for (int j = j0; j < j1; ++j) {
           for (int i = i0; i < i1; ++i) {
-            if (one && fs.constant) {
+            if (uniform) {
               store(i, j, fs.radiance);
             } else {
-              const Vec2d q[4] = {g.Corner(i, j), g.Corner(i + 1, j), g.Corner(i + 1, j + 1), g.Corner(i, j + 1)};
-              store(i, j, integrator.TilePixel(front, one, q));
+              store(i, j, integrator.TilePixel(front, one, g.Center(i, j), g.Footprint(i, j)));
             }
           }
         }

@@ -45,12 +45,24 @@ struct Piece {
   double Inside(const Vec2d& p) const;
 };
 
+// A texture's constants, computed once per render.
+struct TexturePlan {
+  const Texture* texture = nullptr;
+  int octaves = 0;
+  std::array<double, 12> inv_wavelength{}, amplitude{};  // amplitude includes noise_amplitude / sum
+  std::array<int64_t, 12> shift_x{}, shift_y{};
+  double inv_tile = 0;
+  int64_t tile_shift = 0;
+};
+TexturePlan MakeTexturePlan(const Texture& texture);
+
 // Shading data of one visible face, in the camera frame.
 struct Surface {
   Vec3d normal = Vec3d::UnitZ();  // unit, towards the camera side that sees the face
   double d = -1;                  // plane: normal . P = d (negative for a face that is seen)
   Vec3d albedo = Vec3d::Ones();
   const Texture* texture = nullptr;
+  int texture_plan = -1;          // index into Prepared::texture_plans
   Vec3d tex_u = Vec3d::Zero(), tex_v = Vec3d::Zero();  // u = tex_u . P + tex_u0
   double tex_u0 = 0, tex_v0 = 0;
   bool cylinder = false;          // smooth normal of a cylinder around axis_point + t * axis_dir
@@ -84,10 +96,21 @@ struct PixelGrid {
   int cols = 0, rows = 0;    // raster size in pixels
   bool distorted = false;
   std::vector<Vec2d> corners;  // (cols + 1) * (rows + 1), row-major; empty when not distorted
+  std::vector<Vec2d> centers;  // cols * rows: the centroid of each pixel quad (distorted only)
+  std::vector<double> footprints;  // cols * rows: sqrt of each pixel quad's area (distorted only)
   // Corner (i, j) is the top-left corner of raster pixel (i, j), i.e. at pixel (x0 + i - 0.5, y0 + j - 0.5).
   Vec2d Corner(int i, int j) const {
     if (!distorted) return Vec2d(x0 + i - 0.5, y0 + j - 0.5);
     return corners[static_cast<std::size_t>(j) * static_cast<std::size_t>(cols + 1) + static_cast<std::size_t>(i)];
+  }
+  // Centre (ideal) and footprint size of raster pixel (i, j).
+  Vec2d Center(int i, int j) const {
+    if (!distorted) return Vec2d(x0 + i, y0 + j);
+    return centers[static_cast<std::size_t>(j) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(i)];
+  }
+  double Footprint(int i, int j) const {
+    if (!distorted) return 1.0;
+    return footprints[static_cast<std::size_t>(j) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(i)];
   }
 };
 
@@ -135,12 +158,14 @@ struct Prepared {
   double near_clip = 1e-3;
   std::vector<Mesh> meshes;
   std::vector<Surface> surfaces;
+  std::vector<TexturePlan> texture_plans;
   std::vector<Piece> pieces;
   // Lighting in the camera frame.
   double ambient = 0;
   std::vector<Vec3d> light_dirs;  // unit, towards the light
   std::vector<double> light_intensity;
-  std::vector<SpotLight> spotlights;  // position/direction in the camera frame
+  std::vector<SpotLight> spotlights;  // position/direction in the camera frame; cone_half_angle_rad
+                                      // holds the cone's cosine here
   IlluminationGradient gradient;      // in the camera frame
   bool has_gradient = false;
   // Laser spots in the camera frame, already convolved with the PSF (see PreparedSpot).

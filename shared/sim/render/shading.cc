@@ -49,78 +49,101 @@ inline double LatticeValue(int64_t i, int64_t j, const NoiseTables& t) {
   return t.value[t.perm[static_cast<std::size_t>((a + j) & 255)]];
 }
 
-// Per-tile brightness hash (no period).
-double TileHash(int64_t i, int64_t j, uint64_t seed) {
-  const uint64_t h = MixBits(static_cast<uint64_t>(i) * 0x9E3779B97F4A7C15ULL ^
-                             MixBits(static_cast<uint64_t>(j) + 0x632BE59BD9B4E019ULL + seed * 0x85EBCA77C2B2AE63ULL));
-  return static_cast<double>(h >> 11) * (2.0 / 9007199254740992.0) - 1.0;
-}
-
 double Quintic(double t) { return t * t * t * (t * (t * 6 - 15) + 10); }
 
+// floor() without a libm call (the default x86-64 target has no SSE4.1 rounding instruction).
+inline double FastFloor(double x) {
+  const double t = static_cast<double>(static_cast<int64_t>(x));
+  return t > x ? t - 1 : t;
+}
+
 // Smooth value noise in [-1, 1] with unit lattice spacing; `shift` moves the lattice (per seed/octave).
-double ValueNoise(double x, double y, int64_t shift_x, int64_t shift_y) {
-  const NoiseTables& t = Tables();
-  const double fx = std::floor(x), fy = std::floor(y);
+inline double ValueNoise(double x, double y, int64_t shift_x, int64_t shift_y, const NoiseTables& t) {
+  const double fx = FastFloor(x), fy = FastFloor(y);
   const auto ix = static_cast<int64_t>(fx) + shift_x, iy = static_cast<int64_t>(fy) + shift_y;
   const double tx = Quintic(x - fx), ty = Quintic(y - fy);
   const double a = LatticeValue(ix, iy, t), b = LatticeValue(ix + 1, iy, t);
   const double c = LatticeValue(ix, iy + 1, t), d = LatticeValue(ix + 1, iy + 1, t);
-  return (a + (b - a) * tx) + ((c + (d - c) * tx) - (a + (b - a) * tx)) * ty;
+  const double ab = a + (b - a) * tx;
+  return ab + ((c + (d - c) * tx) - ab) * ty;
 }
 
 // Length of grout within (-inf, x] measured from 0, for grout lines of width g centred on multiples of
 // the period p: the integral of the pulse train, so a box filter is a difference of two values.
-double GroutIntegral(double x, double p, double g) {
+inline double GroutIntegral(double x, double p, double inv_p, double g) {
   const double s = x + g / 2;
-  const double k = std::floor(s / p);
+  const double k = FastFloor(s * inv_p);
   return k * g + std::min(s - k * p, g);
 }
 
 // Fraction of [x - f/2, x + f/2] covered by grout.
-double FilteredGrout(double x, double f, double p, double g) {
+inline double FilteredGrout(double x, double f, double p, double inv_p, double g) {
   if (g <= 0) return 0;
   if (f < 1e-9 * p) {
     const double s = x + g / 2;
-    return s - std::floor(s / p) * p < g ? 1.0 : 0.0;
+    return s - FastFloor(s * inv_p) * p < g ? 1.0 : 0.0;
   }
-  return (GroutIntegral(x + f / 2, p, g) - GroutIntegral(x - f / 2, p, g)) / f;
+  return (GroutIntegral(x + f / 2, p, inv_p, g) - GroutIntegral(x - f / 2, p, inv_p, g)) / f;
 }
 
+}  // namespace
+
+TexturePlan MakeTexturePlan(const Texture& t) {
+  TexturePlan plan;
+  plan.texture = &t;
+  plan.octaves = std::min(t.noise_octaves, static_cast<int>(plan.inv_wavelength.size()));
+  double amp = 1, norm = 0, wavelength = t.noise_scale;
+  for (int o = 0; o < plan.octaves; ++o) {
+    const uint64_t h = MixBits(t.seed * 31 + static_cast<uint64_t>(o));
+    plan.shift_x[static_cast<std::size_t>(o)] = static_cast<int64_t>(h & 255);
+    plan.shift_y[static_cast<std::size_t>(o)] = static_cast<int64_t>((h >> 8) & 255);
+    plan.inv_wavelength[static_cast<std::size_t>(o)] = 1 / wavelength;
+    plan.amplitude[static_cast<std::size_t>(o)] = amp;
+    norm += amp;
+    amp *= 0.5;
+    wavelength *= 0.5;
+  }
+  for (int o = 0; o < plan.octaves; ++o) plan.amplitude[static_cast<std::size_t>(o)] *= t.noise_amplitude / norm;
+  if (t.tile_size > 0) plan.inv_tile = 1 / t.tile_size;
+  plan.tile_shift = static_cast<int64_t>(MixBits(t.seed ^ 0x7715ULL) & 255);
+  return plan;
+}
+
+namespace {
+
 // The texture's albedo at (u, v) averaged over a footprint fu x fv.
-Vec3d TexturedAlbedo(const Texture& t, const Vec3d& base, double u, double v, double fu, double fv) {
+Vec3d TexturedAlbedo(const TexturePlan& plan, const Vec3d& base, double u, double v, double fu, double fv) {
+  const Texture& t = *plan.texture;
   Vec3d albedo = base;
   if (t.tile_size > 0) {
     const double p = t.tile_size;
     if (t.tile_jitter > 0) {
       // Per-tile brightness; faded out when the footprint spans several tiles (its average is 1).
-      const double fade = std::clamp(2.0 - 2.0 * std::max(fu, fv) / p, 0.0, 1.0);
+      const double fade = std::clamp(2.0 - 2.0 * std::max(fu, fv) * plan.inv_tile, 0.0, 1.0);
       if (fade > 0) {
-        const double h = TileHash(static_cast<int64_t>(std::floor(u / p + 0.5)),
-                                  static_cast<int64_t>(std::floor(v / p + 0.5)), t.seed ^ 0x7715ULL);
+        const double h = LatticeValue(static_cast<int64_t>(FastFloor(u * plan.inv_tile + 0.5)) + plan.tile_shift,
+                                      static_cast<int64_t>(FastFloor(v * plan.inv_tile + 0.5)), Tables());
         albedo *= 1 + fade * t.tile_jitter * h;
       }
     }
-    const double gu = FilteredGrout(u, fu, p, t.grout_width), gv = FilteredGrout(v, fv, p, t.grout_width);
+    const double gu = FilteredGrout(u, fu, p, plan.inv_tile, t.grout_width);
+    const double gv = FilteredGrout(v, fv, p, plan.inv_tile, t.grout_width);
     const double g = 1 - (1 - gu) * (1 - gv);
     albedo = (1 - g) * albedo + g * t.grout_albedo;
   }
-  if (t.noise_amplitude > 0) {
+  if (plan.octaves > 0 && t.noise_amplitude > 0) {
+    const NoiseTables& tables = Tables();
     const double f = std::max(fu, fv);
-    double sum = 0, norm = 0, amp = 1, wavelength = t.noise_scale;
-    for (int o = 0; o < t.noise_octaves; ++o) {
+    double sum = 0;
+    for (int o = 0; o < plan.octaves; ++o) {
+      const std::size_t k = static_cast<std::size_t>(o);
       // Octaves finer than the footprint average to zero: fade them out (frequency clamping).
-      const double fade = std::clamp(2.0 - 4.0 * f / wavelength, 0.0, 1.0);
-      if (fade > 0) {
-        const uint64_t h = MixBits(t.seed * 31 + static_cast<uint64_t>(o));
-        sum += fade * amp *
-               ValueNoise(u / wavelength, v / wavelength, static_cast<int64_t>(h & 255), static_cast<int64_t>((h >> 8) & 255));
-      }
-      norm += amp;
-      amp *= 0.5;
-      wavelength *= 0.5;
+      const double fade = std::clamp(2.0 - 4.0 * f * plan.inv_wavelength[k], 0.0, 1.0);
+      if (fade <= 0) break;  // every finer octave is faded out too
+      sum += fade * plan.amplitude[k] *
+             ValueNoise(u * plan.inv_wavelength[k], v * plan.inv_wavelength[k], plan.shift_x[k], plan.shift_y[k], tables);
     }
-    albedo *= std::max(0.0, 1 + t.noise_amplitude * sum / norm);
+    albedo *= std::max(0.0, 1 + sum);
   }
   return albedo;
 }
@@ -150,25 +173,38 @@ Vec3d Shade(const Prepared& prep, const Surface& s, double x, double y, double f
     const double cos_inc = n.dot(l);
     if (cos_inc <= 0) continue;
     const double cos_axis = -l.dot(sl.direction);
-    const double cos_cone = std::cos(sl.cone_half_angle_rad);
+    // Prepare stored the cone's cosine in cone_half_angle_rad (see Prepare).
+    const double cos_cone = sl.cone_half_angle_rad;
     if (cos_axis <= cos_cone) continue;
     // cos^m falloff inside the cone, and a smooth edge over the outer 10% of the cone.
     const double edge = std::clamp((cos_axis - cos_cone) / (0.1 * (1 - cos_cone)), 0.0, 1.0);
     const double r = sl.reference_distance / dist;
-    irradiance += sl.intensity * cos_inc * r * r * std::pow(cos_axis, sl.falloff_exponent) * edge * edge * (3 - 2 * edge);
+    const double m = sl.falloff_exponent;
+    double falloff = 1;
+    if (m == FastFloor(m) && m <= 16) {
+      for (int k = 0; k < static_cast<int>(m); ++k) falloff *= cos_axis;
+    } else {
+      falloff = std::pow(cos_axis, m);
+    }
+    irradiance += sl.intensity * cos_inc * r * r * falloff * edge * edge * (3 - 2 * edge);
   }
   if (prep.has_gradient) {
     irradiance *= std::max(prep.gradient.min_factor, 1 + prep.gradient.gradient.dot(p - prep.gradient.origin));
   }
   Vec3d albedo = s.albedo;
   if (s.texture != nullptr) {
-    // Footprint of the area in texture units: derivative of the surface point along x and y.
-    const double dw_dx = s.normal.x() / (prep.fx * s.d), dw_dy = s.normal.y() / (prep.fy * s.d);
-    const Vec3d dp_dx = Vec3d(1 / prep.fx, 0, 0) / w - ray * (dw_dx / (w * w));
-    const Vec3d dp_dy = Vec3d(0, 1 / prep.fy, 0) / w - ray * (dw_dy / (w * w));
-    const double fu = footprint_px * (std::abs(s.tex_u.dot(dp_dx)) + std::abs(s.tex_u.dot(dp_dy)));
-    const double fv = footprint_px * (std::abs(s.tex_v.dot(dp_dx)) + std::abs(s.tex_v.dot(dp_dy)));
-    albedo = TexturedAlbedo(*s.texture, albedo, s.tex_u.dot(p) + s.tex_u0, s.tex_v.dot(p) + s.tex_v0, fu, fv);
+    // Footprint of the area in texture units: derivative of the surface point along x and y,
+    // dp/dx = (e_x / fx) / w - ray (dw/dx) / w^2 (and likewise for y), dotted with the texture axes.
+    const double inv_w = 1 / w;
+    const double dw_dx = s.normal.x() / (prep.fx * s.d) * inv_w * inv_w;
+    const double dw_dy = s.normal.y() / (prep.fy * s.d) * inv_w * inv_w;
+    const double tu_r = s.tex_u.dot(ray), tv_r = s.tex_v.dot(ray);
+    const double fu = footprint_px * (std::abs(s.tex_u.x() * inv_w / prep.fx - tu_r * dw_dx) +
+                                      std::abs(s.tex_u.y() * inv_w / prep.fy - tu_r * dw_dy));
+    const double fv = footprint_px * (std::abs(s.tex_v.x() * inv_w / prep.fx - tv_r * dw_dx) +
+                                      std::abs(s.tex_v.y() * inv_w / prep.fy - tv_r * dw_dy));
+    albedo = TexturedAlbedo(prep.texture_plans[static_cast<std::size_t>(s.texture_plan)], albedo,
+                            tu_r * inv_w + s.tex_u0, tv_r * inv_w + s.tex_v0, fu, fv);
   }
   return irradiance * albedo;
 }
