@@ -364,7 +364,7 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
 }  // namespace
 
 void AddCalibrateCommand(CliApp& cli) {
-  CLI::App* cal = cli.app.add_subcommand("calibrate", "ViCKi calibration of the arms (chapter 4) and the rail (chapter 5)");
+  CLI::App* cal = cli.app.add_subcommand("calibrate", "calibrations: the arms (chapter 4), the rail (chapter 5), the pan-tilt cameras");
   cal->require_subcommand(1);
 
   auto ro = std::make_shared<RobotCommandOptions>();
