@@ -204,6 +204,7 @@ Status RunFeatures(const FeaturesCliOptions& o) {
   std::optional<FeatureDetector> detector;
   PixelGeometry geometry;
   int last_w = 0, last_h = 0;
+  std::size_t failed = 0;
   Status first_error = Status::Ok();
   for (const std::string& path : o.images) {
     cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
@@ -236,7 +237,10 @@ Status RunFeatures(const FeaturesCliOptions& o) {
       }
     }
     if (!status.ok()) {
-      spdlog::error("{}", status.message());
+      ++failed;
+      if (o.images.size() > 1) {
+        spdlog::error("{}", status.message());  // the run's summary below names only the first
+      }
       if (first_error.ok()) {
         first_error = status;
       }
@@ -256,6 +260,10 @@ Status RunFeatures(const FeaturesCliOptions& o) {
     if (!o.overlay_dir.empty()) {
       IDI_RETURN_IF_ERROR(WriteOverlay(o.overlay_dir, path, image, r, geometry));
     }
+  }
+  if (failed > 0 && o.images.size() > 1) {
+    return Status(first_error.code(), fmt::format("{} of {} images could not be processed (first: {})", failed,
+                                                  o.images.size(), first_error.message()));
   }
   return first_error;
 }
