@@ -697,9 +697,11 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
   double last_t = -1e18;
   const int chunk_len = std::max(4, static_cast<int>(eo.chunk_length_px));
   int stations_used = 0;
+  // Near a confirmed end the edge fades into a corner over a few blur widths.
+  const double end_margin = std::max(eo.end_margin_px, 1.5 * sigma);
   for (std::size_t i = begin; i < end; ++i) {
     const Station& s = st[i];
-    if (!s.valid || s.outlier || s.t < t0 + eo.end_margin_px || s.t > t1 - eo.end_margin_px) {
+    if (!s.valid || s.outlier || s.t < t0 + end_margin || s.t > t1 - end_margin) {
       continue;
     }
     // Another edge crossing the band (corners, junctions, clutter) breaks the one-step model.
