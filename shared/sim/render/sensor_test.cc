@@ -1,0 +1,109 @@
+// The sensor model: mean and variance of the output follow signal + black level and
+// gain * signal + read^2 + 1/12 (shot noise, read noise, rounding), for every signal level.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "shared/sim/render/render.h"
+
+namespace idi::sim {
+namespace {
+
+struct Stats {
+  double mean = 0, var = 0;
+};
+
+Stats Measure(const cv::Mat& img8) {
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(img8, mean, stddev);
+  return {mean[0], stddev[0] * stddev[0]};
+}
+
+TEST(SensorTest, MeanAndVarianceFollowTheConfiguredModel) {
+  SensorOptions s;
+  s.gain_dn_per_electron = 0.12;
+  s.read_noise_dn = 0.9;
+  s.black_level_dn = 3;
+  const int n = 256;
+  for (const double level : {5.0, 20.0, 60.0, 120.0, 200.0}) {
+    const cv::Mat irr(n, n, CV_32FC1, cv::Scalar(level));
+    const Stats st = Measure(ApplySensor(irr, s, 42));
+    const double expected_var = s.gain_dn_per_electron * level + s.read_noise_dn * s.read_noise_dn + 1.0 / 12;
+    EXPECT_NEAR(st.mean, level + s.black_level_dn, 4 * std::sqrt(expected_var / (n * n)) + 0.01) << level;
+    // The sample variance of 65536 values is good to about 0.6 %.
+    EXPECT_NEAR(st.var / expected_var, 1.0, 0.03) << "level " << level << " var " << st.var;
+  }
+}
+
+TEST(SensorTest, FewElectronsArePoissonDistributed) {
+  // One DN per electron, no read noise: the output is a Poisson count (mean = variance), including
+  // its integer values.
+  SensorOptions s;
+  s.gain_dn_per_electron = 1.0;
+  s.read_noise_dn = 0;
+  for (const double level : {0.5, 3.0, 12.0}) {
+    const cv::Mat irr(256, 256, CV_32FC1, cv::Scalar(level));
+    const cv::Mat out = ApplySensor(irr, s, 7);
+    const Stats st = Measure(out);
+    EXPECT_NEAR(st.mean, level, 0.03 * std::max(1.0, std::sqrt(level)));
+    EXPECT_NEAR(st.var / level, 1.0, 0.04) << level;
+    // P(0) = exp(-level).
+    const double zeros = static_cast<double>(cv::countNonZero(out == 0)) / (256.0 * 256.0);
+    EXPECT_NEAR(zeros, std::exp(-level), 0.01);
+  }
+}
+
+TEST(SensorTest, NoiseFreeRoundsAndClips) {
+  SensorOptions s;
+  s.noise = false;
+  s.black_level_dn = 2;
+  cv::Mat irr(1, 5, CV_32FC1);
+  irr.at<float>(0, 0) = -4;
+  irr.at<float>(0, 1) = 10.49f;
+  irr.at<float>(0, 2) = 10.51f;
+  irr.at<float>(0, 3) = 252.4f;
+  irr.at<float>(0, 4) = 900;
+  const cv::Mat out = ApplySensor(irr, s, 0);
+  EXPECT_EQ(out.at<uint8_t>(0, 0), 2);
+  EXPECT_EQ(out.at<uint8_t>(0, 1), 12);
+  EXPECT_EQ(out.at<uint8_t>(0, 2), 13);
+  EXPECT_EQ(out.at<uint8_t>(0, 3), 254);
+  EXPECT_EQ(out.at<uint8_t>(0, 4), 255);
+}
+
+TEST(SensorTest, SameSeedSameNoiseAndChannelsAreIndependent) {
+  SensorOptions s;
+  const cv::Mat irr(64, 64, CV_32FC3, cv::Scalar(50, 80, 120));
+  const cv::Mat a = ApplySensor(irr, s, 5), b = ApplySensor(irr, s, 5), c = ApplySensor(irr, s, 6);
+  ASSERT_EQ(a.type(), CV_8UC3);
+  EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0);
+  EXPECT_GT(cv::norm(a, c, cv::NORM_L1), 0);
+  std::vector<cv::Mat> ch;
+  cv::split(a, ch);
+  cv::Mat d0, d1;
+  ch[0].convertTo(d0, CV_64F);
+  ch[1].convertTo(d1, CV_64F);
+  d0 -= cv::mean(d0)[0];
+  d1 -= cv::mean(d1)[0];
+  const double corr = d0.dot(d1) / std::sqrt(d0.dot(d0) * d1.dot(d1));
+  EXPECT_LT(std::abs(corr), 0.1);
+}
+
+TEST(SensorTest, BadOptionsAreRejected) {
+  SensorOptions s;
+  s.read_noise_dn = -1;
+  EXPECT_EQ(s.Check().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(s.Check().message().find("read_noise_dn"), std::string::npos);
+  s = SensorOptions();
+  s.gain_dn_per_electron = std::nan("");
+  EXPECT_FALSE(s.Check().ok());
+  RenderOptions r;
+  r.psf_sigma_px = -0.5;
+  EXPECT_NE(r.Check().message().find("psf_sigma_px"), std::string::npos);
+  r = RenderOptions();
+  r.sensor.read_noise_dn = -0.1;
+  EXPECT_FALSE(r.Check().ok());
+}
+
+}  // namespace
+}  // namespace idi::sim
