@@ -155,6 +155,7 @@ const ParamSet& WorkcellTwin::true_laser(int k) const { return arms_.at(static_c
 const ParamSet& WorkcellTwin::true_rail(int k) const { return arms_.at(static_cast<std::size_t>(k))->rail; }
 Joints WorkcellTwin::true_joints(int k) const { return arms_.at(static_cast<std::size_t>(k))->q; }
 double WorkcellTwin::true_rail_position(int k) const { return arms_.at(static_cast<std::size_t>(k))->rail_true_mm; }
+bool WorkcellTwin::laser_on(int k) const { return arms_.at(static_cast<std::size_t>(k))->laser_on; }
 
 WorkcellSetup WorkcellTwin::Setup() const {
   WorkcellSetup s;

@@ -100,6 +100,7 @@ class WorkcellTwin {
   Rigid3d WorldFromBase(int k) const;
   Joints true_joints(int k) const;
   double true_rail_position(int k) const;
+  bool laser_on(int k) const;
   // The noise-free spot of arm k on `wall` (wall coordinates), if it hits.
   std::optional<Vec2d> TrueSpot(int arm, int wall) const;
   const WorkcellTwinOptions& options() const { return options_; }
