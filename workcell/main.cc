@@ -1,7 +1,11 @@
 // idi-workcell: the controller of the two-arm workcell (calibration, scanning, picking).
 #include "shared/runtime/cli.h"
+#include "workcell/app/calibrate_command.h"
+#include "workcell/app/calibrate_ptu_command.h"
 #include "workcell/app/features_command.h"
 #include "workcell/app/kinematics_command.h"
+#include "workcell/app/reconstruct_command.h"
+#include "workcell/app/replay_command.h"
 
 int main(int argc, char** argv) {
   idi::CliApp cli(
@@ -11,5 +15,9 @@ int main(int argc, char** argv) {
   idi::workcell::AddKinematicsCommand(cli);
   idi::workcell::AddFeaturesCommand(cli);
   idi::workcell::AddParamsCommand(cli);
+  idi::workcell::AddCalibrateCommand(cli);
+  idi::workcell::AddCalibratePtuCommand(cli);  // under `calibrate`, after robot|rtu
+  idi::workcell::AddReconstructCommand(cli);
+  idi::workcell::AddReplayCommands(cli);
   return idi::RunCli(cli, argc, argv);
 }

@@ -210,7 +210,7 @@ struct Attempt {
 // One solve from `start`: a robust (Cauchy) solve, then outlier rounds of plain least squares, each
 // leaving out readings beyond the robust threshold.
 Attempt SolveFrom(const Unknowns& start, const RobotCalibrationData& d, const RobotCalibrationOptions& o,
-                  const std::vector<bool>& free_robot, std::vector<double>* history) {
+                  const std::vector<bool>& free_robot, std::vector<double>* history, std::vector<int>* starts) {
   Attempt a;
   a.u = start;
   a.weights = Weights(a.u, d, o.noise);
@@ -233,6 +233,7 @@ Attempt SolveFrom(const Unknowns& start, const RobotCalibrationData& d, const Ro
       return a;
     }
     a.summary = *s;
+    starts->push_back(static_cast<int>(history->size()));
     history->insert(history->end(), s->cost_per_iteration.begin(), s->cost_per_iteration.end());
     if (any_fixed) break;
     const std::vector<ReadingFit> fits = Fits(a.u, d, a.weights);
@@ -409,14 +410,15 @@ Result<RobotCalibrationResult> CalibrateRobot(const RobotCalibrationData& data, 
   RobotCalibrationResult out;
   out.start = "closed form: nominal model, point closest to each set's laser lines (§4.5.4)";
   const std::vector<bool> all_free(kRx130ParamCount, true);
-  Attempt best = SolveFrom(start, data, o, all_free, &out.cost_per_iteration);
+  Attempt best = SolveFrom(start, data, o, all_free, &out.cost_per_iteration, &out.solve_starts);
   std::mt19937 rng(o.restart_seed);
   while (!best.accepted && out.restarts < o.max_restarts) {
     ++out.restarts;
     Unknowns s = start;
     if (out.restarts == 1) {
       // Staged: first the point, direction and laser with the robot held nominal, then everything.
-      Attempt stage = SolveFrom(start, data, o, std::vector<bool>(kRx130ParamCount, false), &out.cost_per_iteration);
+      Attempt stage = SolveFrom(start, data, o, std::vector<bool>(kRx130ParamCount, false), &out.cost_per_iteration,
+                                &out.solve_starts);
       s = stage.u;
     } else {
       // Perturbed (the dissertation's random restarts, §4.3.2), smaller each time.
@@ -427,7 +429,7 @@ Result<RobotCalibrationResult> CalibrateRobot(const RobotCalibrationData& data, 
         s.robot[i] += scale * (specs.spec(i).unit == Unit::kDegree ? DegToRad(0.05) : 0.5) * n(rng);
       }
     }
-    Attempt a = SolveFrom(s, data, o, all_free, &out.cost_per_iteration);
+    Attempt a = SolveFrom(s, data, o, all_free, &out.cost_per_iteration, &out.solve_starts);
     if (a.accepted || !best.summary.usable) best = std::move(a);
   }
   if (!best.summary.usable) {

@@ -101,6 +101,8 @@ struct RobotCalibrationResult {
   Vec3d point_mm = Vec3d::Zero();
   optim::SolverSummary summary;            // of the final solve
   std::vector<double> cost_per_iteration;  // every solve of the run, in order (Fig. 4.9)
+  std::vector<int> solve_starts;           // where each solve begins in cost_per_iteration; the first
+                                           // solve of each start uses a robust (Cauchy) loss
   std::string start;                       // how the solve was started
   int restarts = 0;                        // restarts that were needed beyond the closed-form start
   std::vector<OutlierReading> outliers;

@@ -69,6 +69,7 @@ sim::WorkcellTwinOptions TwinOptions(unsigned seed, double spot_sigma_mm) {
 }
 
 Status SavePlots(const std::string& dir, const std::string& prefix, const std::vector<double>& cost,
+                 const std::vector<int>& solve_starts,
                  const std::vector<std::pair<std::string, calib::SpreadStats>>& spreads) {
   if (dir.empty()) return Status::Ok();
   std::error_code ec;
@@ -79,12 +80,23 @@ Status SavePlots(const std::string& dir, const std::string& prefix, const std::v
   cf.x_axis().label = "iteration";
   cf.y_axis().label = "cost";
   cf.y_axis().log = true;
-  std::vector<double> x, y;
-  for (std::size_t i = 0; i < cost.size(); ++i) {
-    x.push_back(static_cast<double>(i));
-    y.push_back(std::max(cost[i], 1e-300));
+  // One series per solve: the robust (Cauchy) start, then the plain least-squares rounds that leave
+  // the outliers out.
+  std::vector<int> starts = solve_starts.empty() ? std::vector<int>{0} : solve_starts;
+  starts.push_back(static_cast<int>(cost.size()));
+  const std::array<plot::Color, 4> cost_colors = {plot::kBlue, plot::kOrange, plot::kGreen, plot::kPurple};
+  for (std::size_t k = 0; k + 1 < starts.size(); ++k) {
+    std::vector<double> x, y;
+    for (int i = starts[k]; i < starts[k + 1]; ++i) {
+      x.push_back(static_cast<double>(i));
+      y.push_back(std::max(cost[static_cast<std::size_t>(i)], 1e-300));
+    }
+    if (x.empty()) continue;
+    const std::string label = solve_starts.empty() ? "1/2 sum of whitened residuals^2"
+                              : k == 0              ? "robust start (Cauchy loss)"
+                                                    : fmt::format("least squares, round {}", k);
+    cf.AddLine(x, y, label, cost_colors[k % cost_colors.size()], plot::Marker::kCircle);
   }
-  cf.AddLine(x, y, "1/2 sum of whitened residuals^2", plot::kBlue, plot::Marker::kCircle);
   IDI_RETURN_IF_ERROR(cf.SavePng(dir + "/" + prefix + "_cost.png"));
   if (spreads.empty()) return Status::Ok();
   plot::Figure sf;
@@ -92,7 +104,7 @@ Status SavePlots(const std::string& dir, const std::string& prefix, const std::v
   sf.x_axis().label = "mm";
   sf.y_axis().label = "mm";
   sf.SetEqualAspect(true);
-  const std::array<plot::Color, 3> colors = {plot::kRed, plot::kBlue, plot::kGreen};
+  const std::array<plot::Color, 3> spread_colors = {plot::kRed, plot::kBlue, plot::kGreen};
   for (std::size_t k = 0; k < spreads.size(); ++k) {
     std::vector<double> px, py;
     for (const Vec2d& p : spreads[k].second.projected) {
@@ -100,7 +112,7 @@ Status SavePlots(const std::string& dir, const std::string& prefix, const std::v
       py.push_back(p.y());
     }
     sf.AddScatter(px, py, fmt::format("{} (mean {:.3f} mm)", spreads[k].first, spreads[k].second.mean_mm),
-                  colors[k % colors.size()], k == 0 ? plot::Marker::kCross : plot::Marker::kCircle);
+                  spread_colors[k % spread_colors.size()], k == 0 ? plot::Marker::kCross : plot::Marker::kCircle);
   }
   return sf.SavePng(dir + "/" + prefix + "_spread.png");
 }
@@ -120,6 +132,7 @@ nlohmann::json RobotReport(const calib::RobotCalibrationResult& r, const calib::
                  {"initial_cost", r.summary.initial_cost}, {"final_cost", r.summary.final_cost},
                  {"time_ms", r.summary.time_ms}};
   j["cost_per_iteration"] = r.cost_per_iteration;
+  j["solve_starts"] = r.solve_starts;
   j["residuals"] = {{"rms_miss_mm", r.residuals.rms_miss_mm}, {"median_miss_mm", r.residuals.median_miss_mm},
                     {"max_miss_mm", r.residuals.max_miss_mm}, {"rms_normalized", r.residuals.rms_normalized},
                     {"variance_factor", r.residuals.variance_factor}};
@@ -251,7 +264,7 @@ Status RunCalibrateRobot(const RobotCommandOptions& o) {
     IDI_RETURN_IF_ERROR(WriteJson(o.report, report));
     spdlog::info("wrote {}", o.report);
   }
-  return SavePlots(o.plots, fmt::format("robot{}", o.arm), r.cost_per_iteration, spreads);
+  return SavePlots(o.plots, fmt::format("robot{}", o.arm), r.cost_per_iteration, r.solve_starts, spreads);
 }
 
 // Robot k's model for the rail calibration: from its file, or (--sim) calibrated in the twin first.
@@ -358,7 +371,7 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
     IDI_RETURN_IF_ERROR(WriteJson(o.report, report));
     spdlog::info("wrote {}", o.report);
   }
-  return SavePlots(o.plots, "rtu", r.cost_per_iteration, spreads);
+  return SavePlots(o.plots, "rtu", r.cost_per_iteration, {}, spreads);
 }
 
 }  // namespace
