@@ -1,5 +1,6 @@
 // idi-rmp: the Segway RMP follows a taped track with two fixed cameras (§8.12.4).
 #include "rmp/app/fov_command.h"
+#include "rmp/app/rmp_commands.h"
 #include "shared/runtime/cli.h"
 
 int main(int argc, char** argv) {
@@ -8,5 +9,8 @@ int main(int argc, char** argv) {
       "a Segway RMP along it over CAN.",
       "idi-rmp");
   idi::rmp::AddFovCommand(cli);
+  idi::rmp::AddSimRunCommand(cli);
+  idi::rmp::AddReplayCommand(cli);
+  idi::rmp::AddRunCommand(cli);
   return idi::RunCli(cli, argc, argv);
 }

@@ -1,0 +1,286 @@
+#include "rmp/app/control_loop.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+
+#include "shared/runtime/systemd_notify.h"
+
+namespace idi::rmp {
+namespace {
+
+// FNV-1a over the pixels: a frozen camera repeats its last buffer bit for bit (sensor noise makes
+// two real frames differ).
+uint64_t ContentHash(const cv::Mat& m) {
+  uint64_t h = 1469598103934665603ull;
+  for (int r = 0; r < m.rows; ++r) {
+    const uint8_t* p = m.ptr<uint8_t>(r);
+    const std::size_t n = static_cast<std::size_t>(m.cols) * m.elemSize();
+    for (std::size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 1099511628211ull;
+  }
+  return h;
+}
+
+int CameraIndex(const std::string& name) {
+  if (name == "left") return 0;
+  if (name == "right") return 1;
+  return -1;
+}
+
+void PingWatchdog() {
+  static auto last = std::chrono::steady_clock::time_point{};
+  const auto now = std::chrono::steady_clock::now();
+  if (now - last < std::chrono::milliseconds(200)) return;
+  last = now;
+  NotifyWatchdog();
+}
+
+}  // namespace
+
+const char* DecisionName(Decision d) {
+  switch (d) {
+    case Decision::kDrive: return "drive";
+    case Decision::kStopRequested: return "stop-requested";
+    case Decision::kRmpNotRunning: return "rmp-not-running";
+    case Decision::kRmpStatusStale: return "rmp-status-stale";
+    case Decision::kBusOff: return "bus-off";
+    case Decision::kLowBattery: return "low-battery";
+    case Decision::kRmpFault: return "rmp-fault";
+    case Decision::kNoPerception: return "no-perception";
+    case Decision::kPerceptionStale: return "perception-stale";
+    case Decision::kTrackLost: return "track-lost";
+    case Decision::kAtEnd: return "at-end";
+  }
+  return "?";
+}
+
+Status ControlLoopOptions::Check() const {
+  if (!(max_perception_age_s > 0 && std::isfinite(max_perception_age_s))) return InvalidArgument("control: max_perception_age_s must be positive");
+  if (!(track_lost_s > 0)) return InvalidArgument("control: track_lost_s must be positive");
+  if (!(stereo_max_skew_s > 0)) return InvalidArgument("control: stereo_max_skew_s must be positive");
+  if (!(finish_hold_s >= 0)) return InvalidArgument("control: finish_hold_s must be >= 0");
+  if (!(start_timeout_s > 0)) return InvalidArgument("control: start_timeout_s must be positive");
+  if (!(max_run_s >= 0)) return InvalidArgument("control: max_run_s must be >= 0");
+  return Status::Ok();
+}
+
+ControlLoop::ControlLoop(const ControlLoopOptions& options, hal::Clock* clock, RmpDriver* driver, FrameSource* frames,
+                         TrackPerception* perception, const PlannerOptions& planner, const TrackModelOptions& track,
+                         replay::DriveLogWriter* log)
+    : options_(options),
+      clock_(clock),
+      driver_(driver),
+      frames_(frames),
+      perception_(perception),
+      planner_(planner),
+      track_(track),
+      log_(log) {}
+
+Status ControlLoop::Start() {
+  if (log_ != nullptr) driver_->SetFrameLog(log_->can_log());
+  return driver_->Start();
+}
+
+void ControlLoop::RequestStop(const std::string& why) {
+  if (!stop_requested_) spdlog::info("stop requested: {}", why);
+  stop_requested_ = true;
+  stop_reason_ = why;
+  driver_->RequestStop(why);
+}
+
+Status ControlLoop::Shutdown() {
+  stop_requested_ = true;
+  return driver_->Shutdown();
+}
+
+Pose2 ControlLoop::OdometryAt(int64_t t_ns) const {
+  if (odom_history_.empty()) return {};
+  if (t_ns <= odom_history_.front().first) return odom_history_.front().second;
+  for (std::size_t i = 1; i < odom_history_.size(); ++i) {
+    const auto& [t1, p1] = odom_history_[i];
+    if (t1 < t_ns) continue;
+    const auto& [t0, p0] = odom_history_[i - 1];
+    const double f = t1 > t0 ? static_cast<double>(t_ns - t0) / static_cast<double>(t1 - t0) : 1.0;
+    return {p0.x + f * (p1.x - p0.x), p0.y + f * (p1.y - p0.y), p0.yaw + f * (p1.yaw - p0.yaw)};
+  }
+  return odom_history_.back().second;
+}
+
+void ControlLoop::PerceivePair(const hal::Image& left, const hal::Image& right, TickRecord* rec) {
+  const int64_t exposure = (left.timestamp_ns + right.timestamp_ns) / 2;
+  ++stats_.pairs;
+  auto result = perception_->Process(left.pixels, right.pixels, exposure);
+  if (!result.ok()) {
+    ++stats_.perception_errors;
+    spdlog::warn("perception failed on pair {}/{}: {}", left.sequence, right.sequence, result.status().ToString());
+    return;
+  }
+  ++stats_.perceptions;
+  stats_.perception_ms.push_back(result->stats.total_ms);
+  const Pose2 at_exposure = OdometryAt(exposure);
+  auto upd = track_.Update(result->observation, at_exposure);
+  if (!upd.ok()) {
+    spdlog::warn("track update refused: {}", upd.status().ToString());
+  }
+  last_perception_ns_ = exposure;
+  rec->perceived = true;
+  rec->left_seq = static_cast<int64_t>(left.sequence);
+  rec->right_seq = static_cast<int64_t>(right.sequence);
+  rec->perception_exposure_ns = exposure;
+  rec->perception_ms = result->stats.total_ms;
+  last_result_ = std::move(*result);
+}
+
+Decision ControlLoop::Decide(int64_t now_ns, PlanOutput* plan, const Pose2& odom) {
+  const RmpDriverHealth& h = driver_->health();
+  if (stop_requested_) return Decision::kStopRequested;
+  if (h.state != RmpDriverState::kRunning) return Decision::kRmpNotRunning;
+  if (h.bus_off) return Decision::kBusOff;
+  if (!h.status_fresh) return Decision::kRmpStatusStale;
+  if (h.low_battery) return Decision::kLowBattery;
+  if (h.rmp_fault) return Decision::kRmpFault;
+  if (last_perception_ns_ < 0) return Decision::kNoPerception;
+  if (static_cast<double>(now_ns - last_perception_ns_) * 1e-9 > options_.max_perception_age_s) return Decision::kPerceptionStale;
+  if (track_.initialised() && track_.end_known()) {
+    // Arrived at the track's known end: nothing more to see (the last tape lies under the vehicle).
+    const TrackAhead ahead = track_.Ahead(1.0, 0.0);
+    if (ahead.end_known && ahead.length_m < 0.02) return Decision::kAtEnd;
+  }
+  if (!track_.initialised() || static_cast<double>(now_ns - track_.last_associated_ns()) * 1e-9 > options_.track_lost_s) {
+    return Decision::kTrackLost;
+  }
+  PlannerInput in;
+  in.now_ns = now_ns;
+  in.odom_from_vehicle = odom;
+  const RmpStatusSnapshot& s = driver_->status();
+  if (s.speeds_ns >= 0 && now_ns - s.speeds_ns < 100'000'000) {
+    in.speed_mps = 0.5 * (s.speeds.left_wheel_mps + s.speeds.right_wheel_mps);
+    in.yaw_rate_rps = s.speeds.yaw_rate_rps;
+  }
+  in.track = track_.Ahead(4.0);
+  in.footprints_m = perception_->footprints();
+  *plan = planner_.Plan(in);
+  if (plan->state == PlanState::kAtEnd) return Decision::kAtEnd;
+  if (plan->state == PlanState::kNoTrack || plan->state == PlanState::kOffTrack) return Decision::kTrackLost;
+  return Decision::kDrive;
+}
+
+Result<TickRecord> ControlLoop::Step() {
+  const int64_t t = driver_->next_send_ns();
+  if (first_tick_) start_ns_ = t;
+  IDI_RETURN_IF_ERROR(driver_->RunUntil(t - 1));
+  TickRecord rec;
+  rec.t_ns = t;
+  const bool running = driver_->health().state == RmpDriverState::kRunning;
+  if (running && stats_.running_since_ns < 0) stats_.running_since_ns = t;
+  if (!running && stats_.running_since_ns < 0 && static_cast<double>(t - start_ns_) * 1e-9 > options_.start_timeout_s) {
+    return DeviceError("the RMP driver did not reach running within " + std::to_string(options_.start_timeout_s) +
+                       " s (state " + RmpDriverStateName(driver_->health().state) + ", " + driver_->health().last_event + ")");
+  }
+  // Odometry.
+  const RmpOdometryPose& op = driver_->odometry().pose();
+  const Pose2 odom{op.x_m, op.y_m, op.yaw_rad};
+  if (driver_->odometry().initialized() && (odom_history_.empty() || op.timestamp_ns > odom_history_.back().first)) {
+    odom_history_.emplace_back(op.timestamp_ns, odom);
+    while (odom_history_.size() > 200) odom_history_.pop_front();
+  }
+  rec.odom = odom;
+
+  // Frames: the newest per camera; frozen ones (a repeat of the previous buffer) are not used.
+  IDI_ASSIGN_OR_RETURN(std::vector<hal::Image> frames, frames_->Collect(clock_->NowNs()));
+  for (hal::Image& f : frames) {
+    ++stats_.frames;
+    if (log_ != nullptr) {
+      IDI_RETURN_IF_ERROR(log_->AddFrame(f));
+      IDI_RETURN_IF_ERROR(log_->AddDelivered(clock_->NowNs(), f.camera, f.sequence));
+    }
+    const int cam = CameraIndex(f.camera);
+    if (cam < 0 || f.pixels.empty()) continue;
+    const uint64_t hash = ContentHash(f.pixels);
+    auto prev = last_hash_.find(f.camera);
+    const bool frozen = prev != last_hash_.end() && prev->second == hash;
+    last_hash_[f.camera] = hash;
+    auto prev_seq = last_seq_.find(f.camera);
+    if (prev_seq != last_seq_.end() && f.sequence > prev_seq->second + 1) stats_.dropped_frames += f.sequence - prev_seq->second - 1;
+    last_seq_[f.camera] = f.sequence;
+    if (frozen) {
+      ++stats_.frozen_frames;
+      continue;
+    }
+    if (latest_[cam]) ++stats_.unpaired_frames;  // superseded before it found a partner
+    latest_[cam] = std::move(f);
+  }
+  if (latest_[0] && latest_[1]) {
+    const int64_t skew = std::abs(latest_[0]->timestamp_ns - latest_[1]->timestamp_ns);
+    if (static_cast<double>(skew) * 1e-9 <= options_.stereo_max_skew_s) {
+      if (running && (latest_[0]->timestamp_ns + latest_[1]->timestamp_ns) / 2 > last_pair_exposure_ns_) {
+        PerceivePair(*latest_[0], *latest_[1], &rec);
+        last_pair_exposure_ns_ = (latest_[0]->timestamp_ns + latest_[1]->timestamp_ns) / 2;
+      }
+      latest_[0].reset();
+      latest_[1].reset();
+    } else {
+      // The older one will never find its partner.
+      ++stats_.unpaired_frames;
+      latest_[latest_[0]->timestamp_ns < latest_[1]->timestamp_ns ? 0 : 1].reset();
+    }
+  }
+  if (rec.perceived) stats_.frame_to_command_ms.push_back(static_cast<double>(t - rec.perception_exposure_ns) * 1e-6);
+
+  track_.UpdateProgress(odom);
+  PlanOutput plan;
+  Decision d = Decide(t, &plan, odom);
+  double v = 0.0, w = 0.0;
+  if (d == Decision::kDrive && !plan.stopped()) {
+    const Status s = driver_->SetCommand({plan.speed_mps, plan.yaw_rate_rps, last_perception_ns_});
+    if (s.ok()) {
+      v = plan.speed_mps;
+      w = plan.yaw_rate_rps;
+    } else {
+      d = Decision::kPerceptionStale;  // the driver refuses data older than its own limit
+      driver_->CommandZero();
+    }
+  } else {
+    driver_->CommandZero();
+  }
+  planner_.CommandSent(t, v, w);
+  IDI_RETURN_IF_ERROR(driver_->RunUntil(t));
+  rec.decision = d;
+  rec.plan = plan;
+  rec.speed_mps = v;
+  rec.yaw_rate_rps = w;
+
+  ++stats_.ticks;
+  ++stats_.decisions[DecisionName(d)];
+  if (v == 0.0 && w == 0.0) ++stats_.zero_ticks; else ++stats_.drive_ticks;
+  if (first_tick_ || d != last_decision_) {
+    std::string text = std::string(DecisionName(d));
+    if (d == Decision::kDrive) text += std::string(" (") + PlanStateName(plan.state) + ")";
+    if (d == Decision::kRmpNotRunning) text += std::string(" (") + RmpDriverStateName(driver_->health().state) + ")";
+    if (d == Decision::kPerceptionStale && last_perception_ns_ >= 0) {
+      text += " (last perception " + std::to_string(static_cast<double>(t - last_perception_ns_) * 1e-9) + " s ago)";
+    }
+    if (d == Decision::kStopRequested) text += " (" + stop_reason_ + ")";
+    spdlog::info("t={:.3f} s: {}", static_cast<double>(t - start_ns_) * 1e-9, text);
+    if (sink_) sink_(t, text);
+  }
+  spdlog::debug("t={:.3f} {} {} v={:.3f} w={:.3f} e={:.4f}", static_cast<double>(t - start_ns_) * 1e-9, DecisionName(d),
+                PlanStateName(plan.state), v, w, plan.lateral_error_m);
+  last_decision_ = d;
+  first_tick_ = false;
+  if (log_ != nullptr) {
+    IDI_RETURN_IF_ERROR(log_->AddTick({t, rec.left_seq, rec.right_seq, v, w, DecisionName(d), PlanStateName(plan.state)}));
+  }
+  // Done: stopped at the track's known end for finish_hold_s.
+  if (d == Decision::kAtEnd) {
+    if (at_end_since_ns_ < 0) at_end_since_ns_ = t;
+    if (stats_.finished_ns < 0 && static_cast<double>(t - at_end_since_ns_) * 1e-9 >= options_.finish_hold_s) stats_.finished_ns = t;
+  } else {
+    at_end_since_ns_ = -1;
+  }
+  PingWatchdog();
+  return rec;
+}
+
+}  // namespace idi::rmp

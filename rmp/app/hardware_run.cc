@@ -1,0 +1,129 @@
+#include "rmp/app/hardware_run.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+
+#include "shared/runtime/systemd_notify.h"
+
+#if IDI_RMP_HARDWARE
+#include "shared/drivers/socketcan/socketcan_bus.h"
+#include "shared/drivers/v4l2/v4l2_camera.h"
+#endif
+
+namespace idi::rmp {
+
+#if IDI_RMP_HARDWARE
+namespace {
+
+// The two V4L2 cameras: every frame each has ready, without waiting.
+class V4l2Frames final : public FrameSource {
+ public:
+  explicit V4l2Frames(std::vector<std::unique_ptr<drivers::V4l2Camera>> cams) : cams_(std::move(cams)) {}
+  Result<std::vector<hal::Image>> Collect(int64_t /*now_ns*/) override {
+    std::vector<hal::Image> out;
+    for (auto& cam : cams_) {
+      for (int k = 0; k < 8; ++k) {  // drain what is queued, never block
+        auto img = cam->Grab(std::chrono::milliseconds(0));
+        if (!img.ok()) {
+          if (img.status().code() != StatusCode::kTimeout) spdlog::warn("camera {}: {}", cam->name(), img.status().ToString());
+          break;
+        }
+        out.push_back(std::move(*img));
+      }
+    }
+    return out;
+  }
+
+ private:
+  std::vector<std::unique_ptr<drivers::V4l2Camera>> cams_;
+};
+
+}  // namespace
+
+Result<RunReport> RunHardware(const HardwareRunOptions& o) {
+  const RmpConfig& config = o.config;
+  hal::MonotonicClock clock;
+  drivers::SocketCanOptions can_options;
+  can_options.interface = config.can_interface;
+  IDI_ASSIGN_OR_RETURN(std::unique_ptr<drivers::SocketCanBus> bus, drivers::SocketCanBus::Open(can_options, &clock));
+  std::vector<std::unique_ptr<drivers::V4l2Camera>> cams;
+  for (const CameraDeviceConfig& c : config.cameras) {
+    drivers::V4l2CameraOptions vo;
+    vo.device = c.device;
+    vo.name = c.name;
+    vo.frame_rate_hz = c.frame_rate_hz;
+    auto cam = std::make_unique<drivers::V4l2Camera>(vo);
+    hal::CameraSettings s;
+    s.width = c.width;
+    s.height = c.height;
+    s.gray = true;
+    IDI_RETURN_IF_ERROR(cam->Start(s).WithContext("camera " + c.name));
+    cams.push_back(std::move(cam));
+  }
+  V4l2Frames frames(std::move(cams));
+  IDI_ASSIGN_OR_RETURN(std::unique_ptr<TrackPerception> perception, TrackPerception::Create(config.rig, config.perception));
+  IDI_ASSIGN_OR_RETURN(std::unique_ptr<RmpDriver> driver, RmpDriver::Create(bus.get(), &clock, config.driver));
+  drivers::SocketCanBus* raw_bus = bus.get();
+  driver->SetBusRecovery([raw_bus] { return raw_bus->Restart(); });
+  driver->SetEventSink([](int64_t, const std::string& e) { spdlog::info("rmp driver: {}", e); });
+  std::unique_ptr<replay::DriveLogWriter> log;
+  if (!o.record_dir.empty()) {
+    RecordingHeader header;
+    header.created_unix_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+    header.cameras["left"] = config.rig.left.intrinsics;
+    header.cameras["right"] = config.rig.right.intrinsics;
+    header.meta = {{"source", "hardware"}, {"config_yaml", o.config_text}, {"cruise_speed_mps", config.planner.cruise_speed_mps}};
+    IDI_ASSIGN_OR_RETURN(log, replay::DriveLogWriter::Create(o.record_dir, header));
+  }
+  ControlLoop loop(config.control, &clock, driver.get(), &frames, perception.get(), config.planner, config.track, log.get());
+  IDI_RETURN_IF_ERROR(loop.Start());
+  NotifyReady();
+  NotifyStatus("driving");
+  RunReport report;
+  Status failure;
+  while (true) {
+    if (o.stop != nullptr && o.stop->load()) {
+      loop.RequestStop("signal");
+      report.end = "stopped";
+      break;
+    }
+    auto rec = loop.Step();
+    if (!rec.ok()) {
+      failure = rec.status();
+      report.end = "error: " + failure.message();
+      break;
+    }
+    if (loop.finished()) {
+      report.end = "finished";
+      break;
+    }
+  }
+  NotifyStopping();
+  const Status shutdown = loop.Shutdown();  // zero, whatever happened
+  if (!shutdown.ok()) spdlog::error("driver shutdown: {}", shutdown.ToString());
+  if (log) IDI_RETURN_IF_ERROR(log->Finish({{"source", "hardware"}, {"config_yaml", o.config_text}}));
+  const ControlLoopStats& st = loop.stats();
+  report.completed = loop.finished();
+  report.frames = st.perceptions;
+  report.perception_ms_median = Percentile(st.perception_ms, 0.5);
+  report.perception_ms_p99 = Percentile(st.perception_ms, 0.99);
+  report.frame_to_command_ms_median = Percentile(st.frame_to_command_ms, 0.5);
+  report.frame_to_command_ms_p99 = Percentile(st.frame_to_command_ms, 0.99);
+  report.commands = driver->health().counters.frames_sent;
+  report.commands_nonzero = driver->health().counters.motion_frames;
+  report.distance_m = driver->odometry().pose().distance_m;
+  report.decisions = st.decisions;
+  if (!failure.ok()) return failure;
+  return report;
+}
+
+#else
+
+Result<RunReport> RunHardware(const HardwareRunOptions&) {
+  return FailedPrecondition("this idi-rmp was built without the SocketCAN and V4L2 backends (targets/<t>/target.cmake)");
+}
+
+#endif
+
+}  // namespace idi::rmp

@@ -1,0 +1,167 @@
+#include "rmp/app/replay_run.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "rmp/segway/rmp_codec.h"
+#include "shared/replay/can_log_bus.h"
+#include "shared/replay/drive_log.h"
+
+namespace idi::rmp {
+namespace {
+
+// The log's frames, delivered to the loop when the log says they were.
+class LogFrames final : public FrameSource {
+ public:
+  explicit LogFrames(const replay::DriveLog* log) : log_(log) {
+    for (std::size_t i = 0; i < log->frames.size(); ++i) {
+      if (log->frames[i].delivered_ns >= 0) order_.push_back(i);
+    }
+    std::stable_sort(order_.begin(), order_.end(), [&](std::size_t a, std::size_t b) {
+      return log->frames[a].delivered_ns < log->frames[b].delivered_ns;
+    });
+  }
+  Result<std::vector<hal::Image>> Collect(int64_t now_ns) override {
+    std::vector<hal::Image> out;
+    while (next_ < order_.size() && log_->frames[order_[next_]].delivered_ns <= now_ns) {
+      IDI_ASSIGN_OR_RETURN(hal::Image img, replay::LoadDriveFrame(*log_, log_->frames[order_[next_]]));
+      out.push_back(std::move(img));
+      ++next_;
+    }
+    return out;
+  }
+
+ private:
+  const replay::DriveLog* log_;
+  std::vector<std::size_t> order_;
+  std::size_t next_ = 0;
+};
+
+}  // namespace
+
+Result<ReplayResult> RunReplay(const ReplayOptions& o) {
+  IDI_ASSIGN_OR_RETURN(const replay::DriveLog log, replay::ReadDriveLog(o.dir));
+  const nlohmann::json& meta = log.recording.header.meta;
+  if (log.ticks.empty()) return InvalidArgument(o.dir + ": the drive log has no control ticks");
+  if (log.can.empty()) return InvalidArgument(o.dir + ": the drive log's can.log is empty");
+  // The pipeline as it was configured when the log was recorded.
+  RmpConfig config = DefaultRmpConfig();
+  const std::string config_yaml = meta.value("config_yaml", std::string());
+  if (!config_yaml.empty()) {
+    IDI_ASSIGN_OR_RETURN(config, ParseRmpConfig(config_yaml, o.dir + "/recording.json (config_yaml)"));
+  }
+  if (meta.contains("cruise_speed_mps")) {
+    config.planner.cruise_speed_mps = meta["cruise_speed_mps"].get<double>();
+    config.planner.max_speed_mps = std::max(config.planner.max_speed_mps, config.planner.cruise_speed_mps);
+  }
+  if (meta.contains("tape_width_m")) {
+    config.perception.tape.tape_width_m = meta["tape_width_m"].get<double>();
+    config.perception.tape.width_tolerance_m = std::min(config.perception.tape.width_tolerance_m, 0.5 * config.perception.tape.tape_width_m);
+  }
+  IDI_RETURN_IF_ERROR(config.planner.Check());
+  IDI_RETURN_IF_ERROR(config.perception.Check());
+  IDI_ASSIGN_OR_RETURN(std::unique_ptr<TrackPerception> perception, TrackPerception::Create(config.rig, config.perception));
+
+  // The clock starts where the log does; the driver's own frames are compared, not delivered.
+  int64_t start_ns = log.can.front().frame.timestamp_ns;
+  hal::SimClock clock(start_ns);
+  replay::CanLogReplayOptions ro;
+  ro.own_ids = {kRmpIdCommand, kRmpIdShutdown};
+  replay::CanLogReplayBus bus(log.can, &clock, ro);
+  IDI_ASSIGN_OR_RETURN(std::unique_ptr<RmpDriver> driver, RmpDriver::Create(&bus, &clock, config.driver));
+  std::unique_ptr<replay::CandumpWriter> can_out;
+  if (!o.can_log.empty()) {
+    replay::CandumpWriterOptions co;
+    co.mark_direction = true;
+    IDI_ASSIGN_OR_RETURN(can_out, replay::CandumpWriter::Open(o.can_log, co));
+    driver->SetFrameLog(can_out.get());
+  }
+  LogFrames frames(&log);
+  ControlLoop loop(config.control, &clock, driver.get(), &frames, perception.get(), config.planner, config.track, nullptr);
+  IDI_RETURN_IF_ERROR(loop.Start());
+
+  ReplayResult result;
+  double sum_sq = 0.0, max_lat = 0.0;
+  int lat_n = 0;
+  uint64_t pairs_with_track = 0;
+  bool moving = false;
+  for (const replay::DriveTickRecord& want : log.ticks) {
+    IDI_ASSIGN_OR_RETURN(const TickRecord got, loop.Step());
+    if (got.t_ns != want.t_ns) {
+      return Internal(o.dir + ": replay tick at " + std::to_string(got.t_ns) + " ns, the log's at " + std::to_string(want.t_ns) +
+                      " ns (the driver's schedule differs from the recording)");
+    }
+    ++result.ticks_compared;
+    const double dv = std::abs(got.speed_mps - want.speed_mps), dw = std::abs(got.yaw_rate_rps - want.yaw_rate_rps);
+    result.max_speed_difference_mps = std::max(result.max_speed_difference_mps, dv);
+    result.max_yaw_rate_difference_rps = std::max(result.max_yaw_rate_difference_rps, dw);
+    if (dv < 1e-6 && dw < 1e-6 && want.decision == DecisionName(got.decision)) ++result.ticks_matching;
+    if (got.perceived && loop.last_perception() != nullptr && !loop.last_perception()->observation.pieces.empty()) ++pairs_with_track;
+    if (got.speed_mps != 0.0 || got.yaw_rate_rps != 0.0) moving = true;
+    if (moving && !loop.finished() && loop.track().initialised()) {
+      const double e = std::abs(loop.track().vehicle_offset_m());
+      sum_sq += e * e;
+      max_lat = std::max(max_lat, e);
+      ++lat_n;
+    }
+  }
+  // The recorded run's own shutdown frames follow; replay them too.
+  const Status shutdown = loop.Shutdown();
+  if (!shutdown.ok()) spdlog::warn("replay: driver shutdown: {}", shutdown.ToString());
+
+  // The driver's frames against the log's, in order.
+  const std::vector<hal::CanFrame>& sent = bus.sent();
+  const std::vector<hal::CanFrame>& logged = bus.logged_transmitted();
+  const std::size_t n = std::min(sent.size(), logged.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    ++result.can_frames_compared;
+    if (sent[i].id == logged[i].id && sent[i].dlc == logged[i].dlc && sent[i].data == logged[i].data &&
+        std::llabs(bus.ClockTimeForLog(logged[i].timestamp_ns) - sent[i].timestamp_ns) <= 1000) {
+      ++result.can_frames_matching;
+    }
+  }
+  RunReport& r = result.report;
+  const ControlLoopStats& st = loop.stats();
+  r.frames = st.perceptions;
+  r.perception_ms_median = Percentile(st.perception_ms, 0.5);
+  r.perception_ms_p99 = Percentile(st.perception_ms, 0.99);
+  r.frame_to_command_ms_median = Percentile(st.frame_to_command_ms, 0.5);
+  r.frame_to_command_ms_p99 = Percentile(st.frame_to_command_ms, 0.99);
+  r.frozen_frames = st.frozen_frames;
+  r.dropped_frames = st.dropped_frames;
+  r.unpaired_frames = st.unpaired_frames;
+  r.perception_errors = st.perception_errors;
+  r.decisions = st.decisions;
+  r.commands = driver->health().counters.frames_sent;
+  r.commands_nonzero = driver->health().counters.motion_frames;
+  r.completed = loop.finished();
+  r.end = loop.finished() ? "finished" : "log-ended";
+  r.distance_m = driver->odometry().pose().distance_m;
+  const int64_t t_begin = st.running_since_ns >= 0 ? st.running_since_ns : start_ns;
+  const int64_t t_end = st.finished_ns >= 0 ? st.finished_ns : log.ticks.back().t_ns;
+  r.time_s = static_cast<double>(t_end - t_begin) * 1e-9;
+  r.lateral_error_rms_m = lat_n > 0 ? std::sqrt(sum_sq / lat_n) : 0.0;
+  r.lateral_error_max_m = max_lat;
+  r.track_visible_fraction = st.perceptions > 0 ? static_cast<double>(pairs_with_track) / static_cast<double>(st.perceptions) : 0.0;
+  r.cruise_speed_mps = config.planner.cruise_speed_mps;
+  r.extra["lateral_error_reference"] = "the perceived track (no ground truth in a log)";
+  r.extra["track_visible_reference"] = "stereo pairs in which the track was perceived";
+  r.extra["ticks_compared"] = result.ticks_compared;
+  r.extra["ticks_matching"] = result.ticks_matching;
+  r.extra["can_frames_compared"] = result.can_frames_compared;
+  r.extra["can_frames_matching"] = result.can_frames_matching;
+  r.extra["can_frames_logged"] = logged.size();
+  r.extra["can_frames_sent"] = sent.size();
+  r.extra["max_speed_difference_mps"] = result.max_speed_difference_mps;
+  r.extra["max_yaw_rate_difference_rps"] = result.max_yaw_rate_difference_rps;
+  r.extra["commands_reproduced"] = result.ticks_matching == result.ticks_compared && result.can_frames_matching == result.can_frames_compared;
+  if (can_out) {
+    IDI_RETURN_IF_ERROR(can_out->Close());
+    r.extra["can_log"] = o.can_log;
+  }
+  return result;
+}
+
+}  // namespace idi::rmp

@@ -1,0 +1,27 @@
+// `idi-rmp replay DIR`: the pipeline re-run on a drive log on a desktop. The log's CAN frames arrive
+// at their receive times and its images at their delivery times, on a simulated clock that starts
+// where the log starts; the control loop runs the same ticks, and its commands are compared with the
+// ones the log recorded (tick by tick, and frame by frame on the CAN bus).
+#pragma once
+
+#include <string>
+
+#include "rmp/app/sim_run.h"
+
+namespace idi::rmp {
+
+struct ReplayOptions {
+  std::string dir;
+  std::string can_log;  // the frames the replayed driver sends (candump -l); empty: none
+};
+
+struct ReplayResult {
+  RunReport report;
+  uint64_t ticks_compared = 0, ticks_matching = 0;
+  uint64_t can_frames_compared = 0, can_frames_matching = 0;
+  double max_speed_difference_mps = 0.0, max_yaw_rate_difference_rps = 0.0;
+};
+
+Result<ReplayResult> RunReplay(const ReplayOptions& options);
+
+}  // namespace idi::rmp

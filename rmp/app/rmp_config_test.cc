@@ -1,0 +1,77 @@
+#include "rmp/app/rmp_config.h"
+
+#include <gtest/gtest.h>
+
+namespace idi::rmp {
+namespace {
+
+TEST(RmpConfigTest, DefaultsAreValid) {
+  const RmpConfig c = DefaultRmpConfig();
+  EXPECT_TRUE(c.Check().ok()) << c.Check().ToString();
+  EXPECT_EQ(c.backend, Backend::kSim);
+  EXPECT_DOUBLE_EQ(c.driver.max_input_age_s, 0.2);
+  EXPECT_DOUBLE_EQ(c.driver.command_rate_hz, 50.0);
+}
+
+TEST(RmpConfigTest, ReadsTheDeploymentFile) {
+  // The keys of targets/segway-laptop/rmp.yaml.
+  auto c = ParseRmpConfig(
+      "backend: hardware\n"
+      "state_dir: /var/lib/idi-rmp\n"
+      "hardware:\n"
+      "  can: {interface: can0}\n"
+      "  cameras:\n"
+      "    - {name: left, backend: v4l2, device: /dev/video0, width: 640, height: 480}\n"
+      "    - {name: right, backend: v4l2, device: /dev/video1, width: 640, height: 480}\n",
+      "rmp.yaml");
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_EQ(c->backend, Backend::kHardware);
+  EXPECT_EQ(c->can_interface, "can0");
+  ASSERT_EQ(c->cameras.size(), 2u);
+  EXPECT_EQ(c->cameras[1].device, "/dev/video1");
+}
+
+TEST(RmpConfigTest, ReadsSectionsWithUnits) {
+  auto c = ParseRmpConfig(
+      "planner: {cruise_speed_mps: 0.8, max_yaw_rate_rps: 1.2}\n"
+      "control: {rate_hz: 25, max_perception_age_s: 0.15}\n"
+      "rig:\n"
+      "  left: {fx_px: 300, pitch_down_deg: 50}\n"
+      "sim:\n"
+      "  camera_rate_hz: 10\n"
+      "  faults: {frozen_camera: left, frozen_from_s: 2, frozen_to_s: 4, covered_m: [[1, 2]]}\n",
+      "c.yaml");
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_DOUBLE_EQ(c->planner.cruise_speed_mps, 0.8);
+  EXPECT_DOUBLE_EQ(c->driver.command_rate_hz, 25.0);
+  EXPECT_DOUBLE_EQ(c->planner.control_period_s, 0.04);
+  EXPECT_DOUBLE_EQ(c->driver.max_input_age_s, 0.15);
+  EXPECT_DOUBLE_EQ(c->rig.left.intrinsics.fx(), 300.0);
+  EXPECT_DOUBLE_EQ(c->rig.right.intrinsics.fx(), 320.0);
+  EXPECT_EQ(c->sim.faults.frozen_camera, "left");
+  ASSERT_EQ(c->sim.faults.covered_m.size(), 1u);
+}
+
+TEST(RmpConfigTest, RefusesMistakesNamingFileLineAndKey) {
+  auto unknown = ParseRmpConfig("planner:\n  cruise_speed: 0.5\n", "c.yaml");
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_NE(unknown.status().message().find("c.yaml:2"), std::string::npos);
+  EXPECT_NE(unknown.status().message().find("planner.cruise_speed"), std::string::npos);
+  auto backend = ParseRmpConfig("backend: simulator\n", "c.yaml");
+  ASSERT_FALSE(backend.ok());
+  EXPECT_NE(backend.status().message().find("backend"), std::string::npos);
+  auto rate = ParseRmpConfig("control: {rate_hz: 2}\n", "c.yaml");
+  ASSERT_FALSE(rate.ok());
+  EXPECT_NE(rate.status().message().find("rate_hz"), std::string::npos);
+  auto number = ParseRmpConfig("planner: {max_speed_mps: fast}\n", "c.yaml");
+  ASSERT_FALSE(number.ok());
+  EXPECT_NE(number.status().message().find("planner.max_speed_mps"), std::string::npos);
+  auto cams = ParseRmpConfig("backend: hardware\nhardware: {cameras: [{name: left, device: /dev/video0}]}\n", "c.yaml");
+  ASSERT_FALSE(cams.ok());
+  EXPECT_NE(cams.status().message().find("right"), std::string::npos);
+  EXPECT_FALSE(ParseRmpConfig("sim: {faults: {frozen_camera: middle}}\n", "c.yaml").ok());
+  EXPECT_EQ(LoadRmpConfig("/nonexistent/rmp.yaml").status().code(), StatusCode::kNotFound);
+}
+
+}  // namespace
+}  // namespace idi::rmp
