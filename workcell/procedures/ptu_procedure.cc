@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <memory>
 
 #include "shared/kinematics/aiming.h"
 #include "workcell/procedures/calibration_procedures.h"
@@ -75,28 +76,41 @@ Status AcquirePtuPoses(PtuDevices& dev, const PtuProcedureOptions& o, const std:
 }  // namespace
 
 PtuSpotObserver CameraSpotObserver(std::array<hal::CameraDevice*, 2> cameras, const LaserSpotOptions& options,
-                                   std::chrono::milliseconds timeout) {
-  return [cameras, options, timeout](BiclopsSide side) -> Result<std::vector<Vec2d>> {
-    hal::CameraDevice* cam = cameras[side == BiclopsSide::kLeft ? 0 : 1];
+                                   std::chrono::milliseconds timeout, double start_exposure_us, int max_halvings) {
+  // The exposure each camera is at now (0: not set yet); shared by the copies of the observer.
+  auto exposure_us = std::make_shared<std::array<double, 2>>(std::array<double, 2>{0.0, 0.0});
+  return [cameras, options, timeout, start_exposure_us, max_halvings,
+          exposure_us](BiclopsSide side) -> Result<std::vector<Vec2d>> {
+    const std::size_t k = side == BiclopsSide::kLeft ? 0 : 1;
+    hal::CameraDevice* cam = cameras[k];
     if (cam == nullptr) return InvalidArgument(std::string("no ") + BiclopsSideName(side) + " camera");
-    IDI_ASSIGN_OR_RETURN(const hal::Image image, cam->Grab(timeout));
-    auto found = FindLaserSpot(image.pixels, options);
-    if (!found.ok()) return found.status().WithContext(cam->name() + ": frame " + std::to_string(image.sequence));
-    std::vector<Vec2d> spots;
-    switch (found->status) {
-      case LaserSpotStatus::kNoSpot:
-        break;
-      case LaserSpotStatus::kFound:
-        spots.push_back(found->spots.front().xy);
-        break;
-      case LaserSpotStatus::kSeveral:
-        for (const LaserSpot& s : found->spots) spots.push_back(s.xy);
-        break;
-      case LaserSpotStatus::kSaturated:
-        return DeviceError(cam->name() + ": the laser spot is a saturated bloom (" + found->message +
-                           "); shorten the exposure (§6.4.3)");
+    for (int halvings = 0;; ++halvings) {
+      IDI_ASSIGN_OR_RETURN(const hal::Image image, cam->Grab(timeout));
+      auto found = FindLaserSpot(image.pixels, options);
+      if (!found.ok()) return found.status().WithContext(cam->name() + ": frame " + std::to_string(image.sequence));
+      std::vector<Vec2d> spots;
+      switch (found->status) {
+        case LaserSpotStatus::kNoSpot:
+          return spots;
+        case LaserSpotStatus::kFound:
+          spots.push_back(found->spots.front().xy);
+          return spots;
+        case LaserSpotStatus::kSeveral:
+          for (const LaserSpot& s : found->spots) spots.push_back(s.xy);
+          return spots;
+        case LaserSpotStatus::kSaturated:
+          break;
+      }
+      const std::string bloom = cam->name() + ": the laser spot is a saturated bloom (" + found->message + ")";
+      if (halvings >= max_halvings) {
+        return DeviceError(bloom + " after " + std::to_string(halvings) + " shorter exposures (§6.4.3)");
+      }
+      double& e = (*exposure_us)[k];
+      e = (e > 0 ? e : start_exposure_us) / 2;
+      const Status set = cam->SetExposure(e);
+      if (!set.ok()) return DeviceError(bloom + "; the exposure cannot be shortened: " + set.message());
+      spdlog::info("{}: saturated laser spot, exposure shortened to {:.0f} us", cam->name(), e);
     }
-    return spots;
   };
 }
 

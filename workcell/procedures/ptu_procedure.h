@@ -36,9 +36,12 @@ struct PtuDevices {
 };
 
 // The observer for cameras: grab a frame from camera `side` (0 left, 1 right) and find the laser spot
-// (shared/features/laser_spot.h). A saturated bloom is an error (shorten the exposure).
+// (shared/features/laser_spot.h). A saturated bloom shortens that camera's exposure (halved, from
+// `start_exposure_us`, at most `max_halvings` times; §6.4.3) and the frame is taken again; a bloom
+// that remains, or a camera without exposure control, is an error naming the camera.
 PtuSpotObserver CameraSpotObserver(std::array<hal::CameraDevice*, 2> cameras, const LaserSpotOptions& options = {},
-                                   std::chrono::milliseconds timeout = std::chrono::milliseconds(2000));
+                                   std::chrono::milliseconds timeout = std::chrono::milliseconds(2000),
+                                   double start_exposure_us = 1000.0, int max_halvings = 5);
 
 // Step 1 of §6.4.4: aims the laser arm at `target_in_base` (that arm's base frame, mm) with its model,
 // from its current joints, and switches the laser on.

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
+#include <opencv2/core.hpp>
 
 #include "workcell/procedures/ptu_twin.h"
 
@@ -17,6 +19,73 @@ PtuProcedureOptions SmallPtuRun(PtuTwin& twin) {
   o.plan.candidates = 150;
   o.plan.validation_poses = 30;
   return o;
+}
+
+// A camera whose spot brightness follows the exposure: a Gaussian spot at (200.3, 150.6) px, 3 px
+// sigma, clipped at 255 like an 8-bit sensor. `has_exposure_control` false: SetExposure fails.
+class ExposureCamera final : public hal::CameraDevice {
+ public:
+  ExposureCamera(double peak_at_1ms, bool has_exposure_control)
+      : peak_at_1ms_(peak_at_1ms), control_(has_exposure_control) {}
+  std::string name() const override { return "exposure-camera"; }
+  Status Start(const hal::CameraSettings&) override { return Status::Ok(); }
+  Status Stop() override { return Status::Ok(); }
+  Result<hal::Image> Grab(std::chrono::milliseconds) override {
+    ++grabs;
+    hal::Image im;
+    im.sequence = static_cast<uint64_t>(grabs);
+    im.pixels = cv::Mat(300, 400, CV_8UC1);
+    const double peak = peak_at_1ms_ * exposure_us / 1000.0;
+    for (int y = 0; y < im.pixels.rows; ++y) {
+      for (int x = 0; x < im.pixels.cols; ++x) {
+        const double r2 = std::pow(x - 200.3, 2) + std::pow(y - 150.6, 2);
+        const double v = 10 + peak * std::exp(-r2 / (2 * 9.0));
+        im.pixels.at<uint8_t>(y, x) = static_cast<uint8_t>(std::lround(std::min(v, 255.0)));
+      }
+    }
+    return im;
+  }
+  Status SetExposure(double us) override {
+    if (!control_) return FailedPrecondition(name() + ": no exposure control");
+    exposure_us = us;
+    return Status::Ok();
+  }
+  double exposure_us = 1000.0;
+  int grabs = 0;
+
+ private:
+  double peak_at_1ms_;
+  bool control_;
+};
+
+TEST(PtuSpotObserver, ABloomShortensTheExposureUntilTheSpotIsMeasurable) {
+  ExposureCamera left(3000.0, true);  // 12x too bright at 1 ms: three halvings to below 255
+  const PtuSpotObserver observe = CameraSpotObserver({&left, nullptr});
+  const auto spots = observe(BiclopsSide::kLeft);
+  ASSERT_TRUE(spots.ok()) << spots.status().ToString();
+  ASSERT_EQ(spots->size(), 1u);
+  EXPECT_NEAR((*spots)[0].x(), 200.3, 0.05);
+  EXPECT_NEAR((*spots)[0].y(), 150.6, 0.05);
+  EXPECT_LT(left.exposure_us, 1000.0);
+  EXPECT_GT(left.grabs, 1);
+  // The shortened exposure is kept: the next frame is good at once.
+  const int before = left.grabs;
+  ASSERT_TRUE(observe(BiclopsSide::kLeft).ok());
+  EXPECT_EQ(left.grabs, before + 1);
+}
+
+TEST(PtuSpotObserver, ABloomThatCannotBeShortenedIsAnErrorNamingTheCamera) {
+  ExposureCamera fixed(3000.0, false);
+  const auto r = CameraSpotObserver({&fixed, nullptr})(BiclopsSide::kLeft);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("exposure-camera"), std::string::npos) << r.status().message();
+  EXPECT_NE(r.status().message().find("cannot be shortened"), std::string::npos) << r.status().message();
+  ExposureCamera blinding(1e9, true);  // still saturated after every halving
+  const auto r2 = CameraSpotObserver({&blinding, nullptr}, {}, std::chrono::milliseconds(100), 1000.0, 3)(
+      BiclopsSide::kLeft);
+  ASSERT_FALSE(r2.ok());
+  EXPECT_NE(r2.status().message().find("saturated bloom"), std::string::npos) << r2.status().message();
+  EXPECT_EQ(blinding.grabs, 4);
 }
 
 TEST(PtuProcedure, CalibratesTheTwinEndToEnd) {

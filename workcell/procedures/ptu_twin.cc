@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <cmath>
+
 #include "shared/sim/render/shapes.h"
 #include "workcell/procedures/calibration_procedures.h"
 
@@ -25,7 +27,7 @@ class PtuTwin::Camera final : public hal::CameraDevice {
   }
   Result<hal::Image> Grab(std::chrono::milliseconds /*timeout*/) override {
     if (!started_) return FailedPrecondition(name() + ": Grab before Start");
-    IDI_ASSIGN_OR_RETURN(cv::Mat pixels, twin_->Render(side_));
+    IDI_ASSIGN_OR_RETURN(cv::Mat pixels, twin_->Render(side_, exposure_us_ / kNominalExposureUs));
     hal::Image image;
     image.timestamp_ns = twin_->cell_.clock().NowNs();
     image.sequence = ++sequence_;
@@ -34,15 +36,19 @@ class PtuTwin::Camera final : public hal::CameraDevice {
     return image;
   }
   Status SetExposure(double exposure_us) override {
-    if (!(exposure_us > 0)) return InvalidArgument(name() + ": exposure must be positive");
+    if (!(exposure_us > 0) || !std::isfinite(exposure_us)) return InvalidArgument(name() + ": exposure must be positive");
+    exposure_us_ = exposure_us;
     return Status::Ok();
   }
+  // The exposure at which the twin's options.exposure_dn holds.
+  static constexpr double kNominalExposureUs = 1000.0;
 
  private:
   PtuTwin* twin_;
   BiclopsSide side_;
   bool started_ = false;
   uint64_t sequence_ = 0;
+  double exposure_us_ = kNominalExposureUs;
 };
 
 Status PtuTwinOptions::Check() const {
@@ -141,7 +147,7 @@ Result<std::vector<Vec2d>> PtuTwin::ObserveGeometric(BiclopsSide side) {
   return spots;
 }
 
-Result<cv::Mat> PtuTwin::Render(BiclopsSide side) {
+Result<cv::Mat> PtuTwin::Render(BiclopsSide side, double exposure_scale) {
   const int image = images_++;
   cell_.clock().AdvanceNs(40 * hal::kNsPerMs);
   const calib::PtuCameraModel& truth = true_camera(side);
@@ -167,7 +173,7 @@ Result<cv::Mat> PtuTwin::Render(BiclopsSide side) {
     }
   }
   sim::RenderOptions r = options_.render;
-  r.exposure_dn = options_.exposure_dn;
+  r.exposure_dn = options_.exposure_dn * exposure_scale;
   r.seed = static_cast<uint64_t>(options_.seed) * 100003ULL + static_cast<uint64_t>(image);
   return sim::RenderScene(scene, truth.Camera(), base_from_cam.Inverse(), r);
 }

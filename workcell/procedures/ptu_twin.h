@@ -89,7 +89,7 @@ class PtuTwin {
   TcfPose TrueTcf() const;
   std::array<double, 2> TrueAngles(BiclopsSide side);
   Result<std::vector<Vec2d>> ObserveGeometric(BiclopsSide side);
-  Result<cv::Mat> Render(BiclopsSide side);
+  Result<cv::Mat> Render(BiclopsSide side, double exposure_scale);  // scale: exposure / nominal
 
   PtuTwinOptions options_;
   sim::WorkcellTwin cell_;
