@@ -2,10 +2,12 @@
 #include "shared/runtime/cli.h"
 #include "workcell/app/calibrate_command.h"
 #include "workcell/app/calibrate_ptu_command.h"
+#include "workcell/app/cell_factory.h"
 #include "workcell/app/features_command.h"
 #include "workcell/app/kinematics_command.h"
 #include "workcell/app/reconstruct_command.h"
 #include "workcell/app/replay_command.h"
+#include "workcell/service/service_commands.h"
 
 int main(int argc, char** argv) {
   idi::CliApp cli(
@@ -19,5 +21,6 @@ int main(int argc, char** argv) {
   idi::workcell::AddCalibratePtuCommand(cli);  // under `calibrate`, after robot|rtu
   idi::workcell::AddReconstructCommand(cli);
   idi::workcell::AddReplayCommands(cli);
+  idi::workcell::AddServiceCommands(cli, idi::workcell::MakeCell);
   return idi::RunCli(cli, argc, argv);
 }

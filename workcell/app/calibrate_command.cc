@@ -17,26 +17,6 @@
 namespace idi::workcell {
 namespace {
 
-struct RobotCommandOptions {
-  std::string observations, method = "translate", out, validate, report, plots;
-  double distance_mm = 0;
-  double spot_sigma_mm = 0.05;
-  double distance_sigma_mm = 0.1414;  // two rail moves of 0.1 mm repeatability
-  bool sim = false;
-  unsigned seed = 1;
-  int arm = 1;
-  int readings = 540;
-};
-
-struct RtuCommandOptions {
-  std::string observations, robot1, robot2, out, report, plots;
-  double spot_sigma_mm = 0.05;
-  double rail_sigma_mm = 0.1;
-  bool sim = false;
-  unsigned seed = 1;
-  int readings = 500;
-};
-
 nlohmann::json SpreadJson(const calib::SpreadStats& s) {
   return {{"max_mm", s.max_mm}, {"mean_mm", s.mean_mm}, {"std_mm", s.std_mm}, {"lines", s.projected.size()}};
 }
@@ -159,6 +139,8 @@ nlohmann::json RobotReport(const calib::RobotCalibrationResult& r, const calib::
   return j;
 }
 
+}  // namespace
+
 Status RunCalibrateRobot(const RobotCommandOptions& o) {
   IDI_ASSIGN_OR_RETURN(const calib::TranslationMethod method, calib::ParseMethod(o.method));
   calib::RobotCalibrationData data;
@@ -267,6 +249,9 @@ Status RunCalibrateRobot(const RobotCommandOptions& o) {
   return SavePlots(o.plots, fmt::format("robot{}", o.arm), r.cost_per_iteration, r.solve_starts, spreads);
 }
 
+
+namespace {
+
 // Robot k's model for the rail calibration: from its file, or (--sim) calibrated in the twin first.
 Result<calib::ArmModel> ArmForRtu(const std::string& file, bool sim, sim::WorkcellTwin* twin, int k, unsigned seed,
                                   double spot_sigma_mm) {
@@ -293,6 +278,8 @@ Result<calib::ArmModel> ArmForRtu(const std::string& file, bool sim, sim::Workce
   m.rail = r.rail;
   return m;
 }
+
+}  // namespace
 
 Status RunCalibrateRtu(const RtuCommandOptions& o) {
   std::unique_ptr<sim::WorkcellTwin> twin;
@@ -373,8 +360,6 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
   }
   return SavePlots(o.plots, "rtu", r.cost_per_iteration, {}, spreads);
 }
-
-}  // namespace
 
 void AddCalibrateCommand(CliApp& cli) {
   CLI::App* cal = cli.app.add_subcommand("calibrate", "calibrations: the arms (chapter 4), the rail (chapter 5), the pan-tilt cameras");

@@ -1,0 +1,331 @@
+#include "workcell/app/cell_factory.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <ctime>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "shared/hal/clock.h"
+#include "shared/sim/workcell/workcell_twin.h"
+#include "shared/util/atomic_file.h"
+#include "shared/util/units.h"
+#include "workcell/app/calibrate_command.h"
+#include "workcell/app/calibrate_ptu_command.h"
+#include "workcell/devices/barrett/barrett_driver.h"
+#include "workcell/devices/ptu/ptu_driver.h"
+#include "workcell/devices/staubli/staubli_driver.h"
+
+namespace idi::workcell {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The RX-130's home: the controller's zero, (0, -90, 90, 0, 0, 0) degrees in the model convention.
+Joints HomeJoints() { return {0.0, -kPi / 2, kPi / 2, 0.0, 0.0, 0.0}; }
+
+// ---- the digital twin -------------------------------------------------------------------------------
+
+class SimDeviceSet final : public DeviceSet {
+ public:
+  explicit SimDeviceSet(unsigned seed) {
+    sim::WorkcellTwinOptions o;
+    o.seed = seed;
+    twin_ = std::make_unique<sim::WorkcellTwin>(o);
+  }
+  Status Connect() override {
+    for (int k = 0; k < 2; ++k) {
+      IDI_RETURN_IF_ERROR(twin_->arm(k).ReadJoints().status().WithContext(twin_->arm(k).name()));
+      IDI_RETURN_IF_ERROR(twin_->rail(k).Read().status());
+    }
+    return Status::Ok();
+  }
+  Status Home() override {
+    for (int k = 0; k < 2; ++k) {
+      IDI_RETURN_IF_ERROR(twin_->laser(k).SetOn(false));
+      IDI_RETURN_IF_ERROR(twin_->arm(k).MoveJoints(HomeJoints(), hal::MoveOptions{}).WithContext("homing " + twin_->arm(k).name()));
+    }
+    return Status::Ok();
+  }
+  Status StopAll() override {
+    Status first = Status::Ok();
+    for (int k = 0; k < 2; ++k) {
+      for (Status st : {twin_->arm(k).Stop(), twin_->rail(k).Stop(), twin_->laser(k).SetOn(false)}) {
+        if (!st.ok() && first.ok()) first = st;
+      }
+    }
+    return first;
+  }
+  nlohmann::json Health() override {
+    nlohmann::json h = {{"backend", "sim"}, {"simulated_time_s", hal::NsToSec(twin_->clock().NowNs())}};
+    for (int k = 0; k < 2; ++k) {
+      auto js = twin_->arm(k).ReadJoints();
+      nlohmann::json a = {{"name", twin_->arm(k).name()}, {"ok", js.ok()}};
+      if (js.ok()) {
+        std::vector<double> deg;
+        for (double q : js->q_rad) deg.push_back(RadToDeg(q));
+        a["joints_deg"] = deg;
+      } else {
+        a["error"] = js.status().message();
+      }
+      h["arms"].push_back(a);
+    }
+    return h;
+  }
+
+ private:
+  std::unique_ptr<sim::WorkcellTwin> twin_;
+};
+
+int64_t NowUnix() { return static_cast<int64_t>(std::time(nullptr)); }
+
+// Commits `file` as calibration item `item` and returns the report with the new version.
+Result<nlohmann::json> CommitItem(JobContext& ctx, const std::string& item, const std::string& file,
+                                  nlohmann::json report) {
+  IDI_ASSIGN_OR_RETURN(const std::string contents, ReadFile(file));
+  IDI_ASSIGN_OR_RETURN(const CalibrationVersion v, ctx.calibration->Commit({{item, contents}}, NowUnix()));
+  report["calibration_version"] = v.number;
+  report["item"] = item;
+  return report;
+}
+
+Result<nlohmann::json> ReadReport(const std::string& path) {
+  IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(path));
+  try {
+    return nlohmann::json::parse(text);
+  } catch (const std::exception& e) {
+    return InvalidArgument(path + ": " + e.what());
+  }
+}
+
+Status CheckOnlyKeys(const nlohmann::json& args, const std::vector<std::string>& keys, const std::string& job) {
+  if (!args.is_object()) return InvalidArgument(job + ": arguments must be a JSON object");
+  for (auto it = args.begin(); it != args.end(); ++it) {
+    if (std::find(keys.begin(), keys.end(), it.key()) == keys.end()) {
+      return InvalidArgument(fmt::format("{}: unknown argument '{}'", job, it.key()));
+    }
+  }
+  return Status::Ok();
+}
+
+Status CheckReadings(const nlohmann::json& args, const std::string& job) {
+  if (!args.contains("readings")) return Status::Ok();
+  const auto& r = args.at("readings");
+  if (!r.is_number_integer() || r.get<int64_t>() < 20 || r.get<int64_t>() > 100000) {
+    return InvalidArgument(job + ": 'readings' must be an integer in [20, 100000]");
+  }
+  return Status::Ok();
+}
+
+JobSpec RobotJob(int arm, unsigned seed) {
+  JobSpec j;
+  j.name = fmt::format("calibrate-robot{}", arm);
+  j.description = fmt::format("ViCKi calibration of robot {} in the twin (chapter 4); args: readings", arm);
+  j.validate = [name = j.name](const nlohmann::json& args) {
+    IDI_RETURN_IF_ERROR(CheckOnlyKeys(args, {"readings"}, name));
+    return CheckReadings(args, name);
+  };
+  j.run = [arm, seed](JobContext& ctx, const nlohmann::json& args) -> Result<nlohmann::json> {
+    RobotCommandOptions o;
+    o.sim = true;
+    o.seed = seed;
+    o.arm = arm;
+    o.readings = args.value("readings", o.readings);
+    o.out = (fs::path(ctx.run_dir) / fmt::format("robot{}.yaml", arm)).string();
+    o.report = (fs::path(ctx.run_dir) / "calibration.json").string();
+    o.observations = (fs::path(ctx.run_dir) / "observations.csv").string();
+    o.validate = (fs::path(ctx.run_dir) / "held_out.csv").string();
+    o.plots = ctx.run_dir;
+    ctx.progress(0.05, "acquiring and solving");
+    IDI_RETURN_IF_ERROR(RunCalibrateRobot(o));
+    if (ctx.cancelled()) return Cancelled("cancelled by the operator; the calibration was not committed");
+    IDI_ASSIGN_OR_RETURN(nlohmann::json report, ReadReport(o.report));
+    return CommitItem(ctx, fmt::format("robot{}", arm), o.out, std::move(report));
+  };
+  return j;
+}
+
+JobSpec RailJob(unsigned seed) {
+  JobSpec j;
+  j.name = "calibrate-rail";
+  j.description = "robot-to-robot transform on the rail in the twin (chapter 5), from the current robot calibrations; args: readings";
+  j.validate = [](const nlohmann::json& args) {
+    IDI_RETURN_IF_ERROR(CheckOnlyKeys(args, {"readings"}, "calibrate-rail"));
+    return CheckReadings(args, "calibrate-rail");
+  };
+  j.run = [seed](JobContext& ctx, const nlohmann::json& args) -> Result<nlohmann::json> {
+    RtuCommandOptions o;
+    o.sim = true;
+    o.seed = seed;
+    o.readings = args.value("readings", o.readings);
+    // The robots' calibrations in use; without them the rail job calibrates them first in its folder.
+    auto r1 = ctx.calibration->CurrentItemPath("robot1");
+    auto r2 = ctx.calibration->CurrentItemPath("robot2");
+    o.robot1 = r1.ok() ? *r1 : (fs::path(ctx.run_dir) / "robot1.yaml").string();
+    o.robot2 = r2.ok() ? *r2 : (fs::path(ctx.run_dir) / "robot2.yaml").string();
+    o.out = (fs::path(ctx.run_dir) / "rail.yaml").string();
+    o.report = (fs::path(ctx.run_dir) / "calibration.json").string();
+    o.observations = (fs::path(ctx.run_dir) / "observations.csv").string();
+    o.plots = ctx.run_dir;
+    ctx.progress(0.05, "acquiring and solving");
+    IDI_RETURN_IF_ERROR(RunCalibrateRtu(o));
+    if (ctx.cancelled()) return Cancelled("cancelled by the operator; the calibration was not committed");
+    IDI_ASSIGN_OR_RETURN(nlohmann::json report, ReadReport(o.report));
+    report["robot1"] = o.robot1;
+    report["robot2"] = o.robot2;
+    return CommitItem(ctx, "rail", o.out, std::move(report));
+  };
+  return j;
+}
+
+JobSpec PtuJob(unsigned seed) {
+  JobSpec j;
+  j.name = "calibrate-ptu";
+  j.description = "both pan-tilt cameras from one unknown laser spot in the twin (chapter 6); args: image (bool), poses";
+  j.validate = [](const nlohmann::json& args) {
+    IDI_RETURN_IF_ERROR(CheckOnlyKeys(args, {"image", "poses"}, "calibrate-ptu"));
+    if (args.contains("image") && !args.at("image").is_boolean()) {
+      return InvalidArgument("calibrate-ptu: 'image' must be true or false");
+    }
+    if (args.contains("poses")) {
+      const auto& p = args.at("poses");
+      if (!p.is_number_integer() || p.get<int64_t>() < 20 || p.get<int64_t>() > 10000) {
+        return InvalidArgument("calibrate-ptu: 'poses' must be an integer in [20, 10000]");
+      }
+    }
+    return Status::Ok();
+  };
+  j.run = [seed](JobContext& ctx, const nlohmann::json& args) -> Result<nlohmann::json> {
+    CalibratePtuOptions o;
+    o.sim = true;
+    o.seed = seed;
+    o.image = args.value("image", true);
+    o.poses = args.value("poses", o.poses);
+    o.out = (fs::path(ctx.run_dir) / "ptu.yaml").string();
+    o.report = (fs::path(ctx.run_dir) / "calibration.json").string();
+    o.observations = (fs::path(ctx.run_dir) / "observations.csv").string();
+    o.validate = (fs::path(ctx.run_dir) / "held_out.csv").string();
+    o.plots = ctx.run_dir;
+    ctx.progress(0.05, o.image ? "surveying and imaging the spot" : "surveying the spot");
+    IDI_RETURN_IF_ERROR(RunCalibratePtu(o));
+    if (ctx.cancelled()) return Cancelled("cancelled by the operator; the calibration was not committed");
+    IDI_ASSIGN_OR_RETURN(nlohmann::json report, ReadReport(o.report));
+    return CommitItem(ctx, "ptu", o.out, std::move(report));
+  };
+  return j;
+}
+
+Result<Cell> MakeSimCell(const WorkcellConfig& config) {
+  Cell cell;
+  cell.devices = std::make_unique<SimDeviceSet>(config.sim_seed);
+  cell.jobs = {RobotJob(1, config.sim_seed), RobotJob(2, config.sim_seed), RailJob(config.sim_seed),
+               PtuJob(config.sim_seed)};
+  cell.calibration_jobs = {"calibrate-robot1", "calibrate-robot2", "calibrate-rail", "calibrate-ptu"};
+  cell.calibration_items = {"robot1", "robot2", "rail", "ptu"};
+  return cell;
+}
+
+// ---- the real cell ------------------------------------------------------------------------------------
+
+class HardwareDeviceSet final : public DeviceSet {
+ public:
+  explicit HardwareDeviceSet(const WorkcellConfig& c) {
+    for (const ArmEndpoint& a : c.arms) {
+      StaubliDriverOptions o;
+      o.name = a.name;
+      o.host = a.host;
+      o.port = a.port;
+      arms_.push_back(std::make_unique<StaubliDriver>(o, &clock_));
+    }
+    for (const SerialEndpoint& p : c.ptus) {
+      PtuDriverOptions o;
+      o.name = "ptu-" + p.name;
+      o.port = p.device;
+      o.baud = p.baud;
+      ptus_.push_back(std::make_unique<PtuDriver>(o, &clock_));
+    }
+    if (!c.hand.device.empty()) {
+      BarrettDriverOptions o;
+      o.name = "barrett";
+      o.port = c.hand.device;
+      o.baud = c.hand.baud;
+      hand_ = std::make_unique<BarrettDriver>(o, &clock_);
+    }
+  }
+  Status Connect() override {
+    for (auto& a : arms_) IDI_RETURN_IF_ERROR(a->Connect());
+    for (auto& p : ptus_) IDI_RETURN_IF_ERROR(p->Connect());
+    if (hand_) IDI_RETURN_IF_ERROR(hand_->Connect());
+    return Status::Ok();
+  }
+  // The arms are only read (an unattended move at power-up is not safe); the PTUs go to 0/0 and the
+  // hand initialises (it drives every motor to its stops).
+  Status Home() override {
+    for (auto& a : arms_) IDI_RETURN_IF_ERROR(a->ReadJoints().status().WithContext(a->name()));
+    for (auto& p : ptus_) IDI_RETURN_IF_ERROR(p->MoveTo(0.0, 0.0, std::chrono::milliseconds(20'000)));
+    if (hand_) IDI_RETURN_IF_ERROR(hand_->Initialize());
+    return Status::Ok();
+  }
+  Status StopAll() override {
+    Status first = Status::Ok();
+    auto keep = [&first](Status st) {
+      if (!st.ok() && first.ok()) first = st;
+    };
+    for (auto& a : arms_) keep(a->Stop());
+    for (auto& p : ptus_) keep(p->Halt());
+    if (hand_) keep(hand_->Stop());
+    return first;
+  }
+  nlohmann::json Health() override {
+    nlohmann::json h = {{"backend", "hardware"}};
+    for (auto& a : arms_) {
+      h["arms"].push_back({{"name", a->name()},
+                           {"state", StaubliStateName(a->state())},
+                           {"timeouts", a->counters().timeouts},
+                           {"faults", a->counters().faults}});
+    }
+    for (auto& p : ptus_) {
+      h["ptus"].push_back({{"name", p->name()},
+                           {"state", PtuStateName(p->state())},
+                           {"timeouts", p->counters().timeouts},
+                           {"faults", p->counters().faults}});
+    }
+    if (hand_) {
+      h["hand"] = {{"name", hand_->name()},
+                   {"state", BarrettStateName(hand_->state())},
+                   {"timeouts", hand_->counters().timeouts},
+                   {"faults", hand_->counters().faults}};
+    }
+    return h;
+  }
+
+ private:
+  hal::MonotonicClock clock_;
+  std::vector<std::unique_ptr<StaubliDriver>> arms_;
+  std::vector<std::unique_ptr<PtuDriver>> ptus_;
+  std::unique_ptr<BarrettDriver> hand_;
+};
+
+Result<Cell> MakeHardwareCell(const WorkcellConfig& config) {
+  if (config.arms.empty()) return InvalidArgument("backend hardware: no arms configured (hardware.arms)");
+  Cell cell;
+  cell.devices = std::make_unique<HardwareDeviceSet>(config);
+  spdlog::warn(
+      "backend hardware: devices connect, home, stop and report health; calibration and scan jobs on the "
+      "real cell are not available in this version (use the sim backend or `idi-workcell calibrate` "
+      "with recorded observation files)");
+  return cell;
+}
+
+}  // namespace
+
+Result<Cell> MakeCell(const WorkcellConfig& config) {
+  if (config.backend == "sim") return MakeSimCell(config);
+  if (config.backend == "hardware") return MakeHardwareCell(config);
+  return InvalidArgument("unknown backend '" + config.backend + "' (sim or hardware)");
+}
+
+}  // namespace idi::workcell

@@ -1,0 +1,160 @@
+// The cells `idi-workcell run` serves: the twin's devices and calibration jobs, and the hardware cell's
+// errors when its devices are not there.
+#include "workcell/app/cell_factory.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <filesystem>
+#include <map>
+
+#include "shared/util/atomic_file.h"
+
+namespace idi::workcell {
+namespace {
+
+namespace fs = std::filesystem;
+
+class CellTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("idi-cell-test-" + std::to_string(::getpid()) + "-" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // Runs a job of `cell` as the service would: validated, in a run folder of its own.
+  Result<nlohmann::json> RunJob(Cell& cell, CalibrationStore& store, const std::string& name, const nlohmann::json& args) {
+    for (JobSpec& j : cell.jobs) {
+      if (j.name != name) continue;
+      IDI_RETURN_IF_ERROR(j.validate(args));
+      JobContext ctx;
+      ctx.cancel = &cancel_;
+      ctx.progress = [this](double f, const std::string&) { progress_.push_back(f); };
+      ctx.run_dir = (dir_ / "runs" / name).string();
+      fs::create_directories(ctx.run_dir);
+      ctx.calibration = &store;
+      ctx.devices = cell.devices.get();
+      return j.run(ctx, args);
+    }
+    return NotFound("no job " + name);
+  }
+
+  fs::path dir_;
+  std::atomic<bool> cancel_{false};
+  std::vector<double> progress_;
+};
+
+WorkcellConfig SimConfig(const fs::path& state) {
+  WorkcellConfig c;
+  c.backend = "sim";
+  c.state_dir = state.string();
+  c.sim_seed = 3;
+  return c;
+}
+
+TEST_F(CellTest, SimCellConnectsHomesAndReportsHealth) {
+  auto cell = MakeCell(SimConfig(dir_));
+  ASSERT_TRUE(cell.ok()) << cell.status().ToString();
+  ASSERT_TRUE(cell->devices->Connect().ok());
+  ASSERT_TRUE(cell->devices->Home().ok());
+  const nlohmann::json h = cell->devices->Health();
+  ASSERT_EQ(h.at("arms").size(), 2u);
+  // Homed: the controller's zero, (0, -90, 90, 0, 0, 0) in the model convention, to encoder resolution.
+  const std::vector<double> home = {0, -90, 90, 0, 0, 0};
+  for (const auto& arm : h.at("arms")) {
+    ASSERT_TRUE(arm.at("ok").get<bool>());
+    for (std::size_t i = 0; i < 6; ++i) EXPECT_NEAR(arm.at("joints_deg")[i].get<double>(), home[i], 0.01) << i;
+  }
+  EXPECT_TRUE(cell->devices->StopAll().ok());
+  // What a stale or missing calibration queues, and what a complete calibration holds.
+  EXPECT_EQ(cell->calibration_jobs,
+            (std::vector<std::string>{"calibrate-robot1", "calibrate-robot2", "calibrate-rail", "calibrate-ptu"}));
+  EXPECT_EQ(cell->calibration_items, (std::vector<std::string>{"robot1", "robot2", "rail", "ptu"}));
+}
+
+TEST_F(CellTest, CalibrationJobsCommitVersionsTheRailJobUsesTheRobotsInUse) {
+  auto cell = MakeCell(SimConfig(dir_));
+  ASSERT_TRUE(cell.ok());
+  CalibrationStore store(dir_.string());
+  ASSERT_TRUE(store.Open().ok());
+  const auto r1 = RunJob(*cell, store, "calibrate-robot1", {{"readings", 200}});
+  ASSERT_TRUE(r1.ok()) << r1.status().ToString();
+  EXPECT_EQ(r1->at("calibration_version").get<int>(), 1);
+  EXPECT_EQ(r1->at("item").get<std::string>(), "robot1");
+  const auto r2 = RunJob(*cell, store, "calibrate-robot2", {{"readings", 200}});
+  ASSERT_TRUE(r2.ok()) << r2.status().ToString();
+  const auto rail = RunJob(*cell, store, "calibrate-rail", {{"readings", 100}});
+  ASSERT_TRUE(rail.ok()) << rail.status().ToString();
+  EXPECT_EQ(rail->at("calibration_version").get<int>(), 3);
+  // The rail job read the robots from the calibration in use, not a fresh calibration of its own.
+  EXPECT_NE(rail->at("robot1").get<std::string>().find("calibration"), std::string::npos) << rail->dump();
+  const auto ptu = RunJob(*cell, store, "calibrate-ptu", {{"image", false}, {"poses", 30}});
+  ASSERT_TRUE(ptu.ok()) << ptu.status().ToString();
+  auto current = store.Current();
+  ASSERT_TRUE(current.ok() && current->has_value());
+  EXPECT_EQ((*current)->number, 4);
+  for (const char* item : {"robot1", "robot2", "rail", "ptu"}) {
+    EXPECT_EQ((*current)->items.count(item), 1u) << item;
+    const auto path = store.CurrentItemPath(item);
+    ASSERT_TRUE(path.ok()) << item;
+    const auto text = ReadFile(*path);
+    ASSERT_TRUE(text.ok());
+    EXPECT_GT(text->size(), 100u) << item;
+  }
+  EXPECT_FALSE(progress_.empty());
+}
+
+TEST_F(CellTest, BadJobArgumentsAreRefusedNamingTheField) {
+  auto cell = MakeCell(SimConfig(dir_));
+  ASSERT_TRUE(cell.ok());
+  CalibrationStore store(dir_.string());
+  ASSERT_TRUE(store.Open().ok());
+  const std::vector<std::pair<std::string, nlohmann::json>> bad = {
+      {"calibrate-robot1", {{"readings", 5}}},
+      {"calibrate-robot1", {{"readings", "many"}}},
+      {"calibrate-robot2", {{"speed", 1}}},
+      {"calibrate-ptu", {{"image", "yes"}}},
+      {"calibrate-ptu", {{"poses", 3}}},
+      {"calibrate-rail", nlohmann::json::array()},
+  };
+  for (const auto& [job, args] : bad) {
+    const auto r = RunJob(*cell, store, job, args);
+    ASSERT_FALSE(r.ok()) << job << " " << args.dump();
+    EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument) << r.status().ToString();
+    EXPECT_NE(r.status().message().find(job), std::string::npos) << r.status().message();
+  }
+  auto current = store.Current();
+  ASSERT_TRUE(current.ok());
+  EXPECT_FALSE(current->has_value()) << "a refused job commits nothing";
+}
+
+TEST_F(CellTest, UnknownBackendAndUnreachableHardwareAreClearErrors) {
+  WorkcellConfig c = SimConfig(dir_);
+  c.backend = "simulation";
+  const auto bad = MakeCell(c);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().message().find("simulation"), std::string::npos);
+
+  c.backend = "hardware";
+  const auto none = MakeCell(c);
+  ASSERT_FALSE(none.ok());
+  EXPECT_NE(none.status().message().find("hardware.arms"), std::string::npos) << none.status().message();
+
+  // An arm whose controller does not answer: port 1 on loopback refuses the connection.
+  c.arms = {{"arm1", "127.0.0.1", 1}};
+  auto cell = MakeCell(c);
+  ASSERT_TRUE(cell.ok()) << cell.status().ToString();
+  EXPECT_TRUE(cell->jobs.empty());
+  const Status st = cell->devices->Connect();
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.message().find("arm1"), std::string::npos) << st.message();
+  (void)cell->devices->StopAll();  // stopping a cell that never connected returns (it must not hang)
+  EXPECT_EQ(cell->devices->Health().at("arms")[0].at("state").get<std::string>(), "disconnected");
+}
+
+}  // namespace
+}  // namespace idi::workcell
