@@ -171,11 +171,11 @@ Status CheckPtuObservations(const std::vector<PtuObservation>& observations, con
     for (double v : values) {
       if (!std::isfinite(v)) return InvalidArgument(place + ": a value is not finite");
     }
-    if (o.pan_rad < range.pan_min_rad || o.pan_rad > range.pan_max_rad) {
+    if (!range.Contains(o.pan_rad, range.tilt_min_rad)) {
       return OutOfRange(fmt::format("{}: pan = {:.4f} deg is outside the PTU's range [{:.4f}, {:.4f}] deg", place,
                                     RadToDeg(o.pan_rad), RadToDeg(range.pan_min_rad), RadToDeg(range.pan_max_rad)));
     }
-    if (o.tilt_rad < range.tilt_min_rad || o.tilt_rad > range.tilt_max_rad) {
+    if (!range.Contains(range.pan_min_rad, o.tilt_rad)) {
       return OutOfRange(fmt::format("{}: tilt = {:.4f} deg is outside the PTU's range [{:.4f}, {:.4f}] deg", place,
                                     RadToDeg(o.tilt_rad), RadToDeg(range.tilt_min_rad), RadToDeg(range.tilt_max_rad)));
     }

@@ -36,8 +36,12 @@ struct PtuRange {
   double tilt_min_rad = DegToRad(-907 * kStepDeg);
   double tilt_max_rad = DegToRad(604 * kStepDeg);
   Status Check() const;
+  // A reading at an end stop is in range: the limits and the readings are both whole position counts,
+  // converted by different routes, so they may differ in the last bits (1e-9 rad is 2e-5 of a count).
   bool Contains(double pan_rad, double tilt_rad) const {
-    return pan_rad >= pan_min_rad && pan_rad <= pan_max_rad && tilt_rad >= tilt_min_rad && tilt_rad <= tilt_max_rad;
+    constexpr double kTol = 1e-9;
+    return pan_rad >= pan_min_rad - kTol && pan_rad <= pan_max_rad + kTol && tilt_rad >= tilt_min_rad - kTol &&
+           tilt_rad <= tilt_max_rad + kTol;
   }
 };
 

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 namespace idi::calib {
 namespace {
 
@@ -81,6 +83,13 @@ TEST(PtuObservationsCheck, RangeAndDoubledSpots) {
   EXPECT_EQ(st.code(), StatusCode::kOutOfRange);
   EXPECT_NE(st.message().find("obs.csv:2: pan = 170.0000 deg is outside the PTU's range"), std::string::npos)
       << st.message();
+  // A reading at the end stop is in range even when its conversion from counts differs from the
+  // limit's in the last bits; a hundredth of a degree beyond is not.
+  const PtuRange range;
+  EXPECT_TRUE(range.Contains(std::nextafter(range.pan_min_rad, -1.0), 0.0));
+  EXPECT_TRUE(range.Contains(range.pan_max_rad * (1 + 1e-15), range.tilt_max_rad * (1 + 1e-15)));
+  EXPECT_FALSE(range.Contains(range.pan_max_rad + DegToRad(0.01), 0.0));
+  EXPECT_FALSE(range.Contains(0.0, range.tilt_min_rad - DegToRad(0.01)));
   parsed = ParsePtuObservationsCsv(h + "left,1,2,3,0,0,0,10,0,5,5\nright,1,2,3,0,0,0,10,0,5,5\nleft,1,2,3,0,0,0,10,0,50,5\n",
                                    "obs.csv");
   ASSERT_TRUE(parsed.ok());
