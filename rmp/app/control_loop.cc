@@ -122,6 +122,20 @@ void ControlLoop::PerceivePair(const hal::Image& left, const hal::Image& right, 
   auto upd = track_.Update(result->observation, at_exposure);
   if (!upd.ok()) {
     spdlog::warn("track update refused: {}", upd.status().ToString());
+  } else if (spdlog::should_log(spdlog::level::trace)) {
+    std::string shapes;
+    for (const CentreLinePiece& p : result->observation.pieces) {
+      shapes += fmt::format(" [{} pts {:.2f},{:.2f}..{:.2f},{:.2f}]", p.points_m.size(), p.points_m.front().x(),
+                            p.points_m.front().y(), p.points_m.back().x(), p.points_m.back().y());
+    }
+    const PerceptionStats& ps = result->stats;
+    spdlog::trace("perception: lines {}/{}, points {}/{}, matches {} points {}+{} lines ({} off the plane), triangulated {} points {} "
+                  "lines, {} edges, {} strips; track update: {} pieces ({} associated, {} appended, {} ignored), {} "
+                  "samples dropped, {:.2f} m ahead;{}",
+                  ps.lines[0], ps.lines[1], ps.points[0], ps.points[1], ps.point_matches, ps.line_matches_topology,
+                  ps.line_matches_transfer, ps.line_matches_rejected_by_plane, ps.points_triangulated, ps.lines_triangulated, ps.edges, ps.strips,
+                  upd->pieces, upd->pieces_associated, upd->pieces_appended, upd->pieces_ignored,
+                  upd->samples_dropped, track_.Ahead(4.0).length_m, shapes);
   }
   last_perception_ns_ = exposure;
   rec->perceived = true;

@@ -171,7 +171,34 @@ Result<PerceptionResult> TrackPerception::Process(const cv::Mat& left, const cv:
   // 2. Correspondence: points and lines by the epipolar constraint and topology (§8.8).
   const PairMatches matches = MatchViewPair(fl, fr, fundamental_, options_.correspondence);
   st.point_matches = static_cast<int>(matches.points.size());
-  std::vector<std::pair<int, int>> line_pairs = matches.lines;
+  // Tape lies on the ground: a line match the ground plane contradicts is a wrong one. Near an acute
+  // corner two edges pass through one IDI point in both images, and the topology may pair the wrong
+  // two; the left line carried through the plane into the right image must lie on the right line (within
+  // a loose tolerance, the plane being an estimate). Rejected lines go on to the plane transfer below.
+  std::vector<std::pair<int, int>> line_pairs;
+  for (const auto& [a, b] : matches.lines) {
+    const ViewLine& l = fl.lines[static_cast<std::size_t>(a)];
+    const ViewLine& r = fr.lines[static_cast<std::size_t>(b)];
+    Vec3d h1, h2;
+    bool consistent = true;
+    if (ground_.IntersectRay(views[0].centre, views[0].Ray(l.end1), &h1) &&
+        ground_.IntersectRay(views[0].centre, views[0].Ray(l.end2), &h2)) {
+      const auto q1 = Project(views[1].pinhole, views[1].cam_from_vehicle * h1);
+      const auto q2 = Project(views[1].pinhole, views[1].cam_from_vehicle * h2);
+      if (q1 && q2 && (*q2 - *q1).norm() >= 5.0) {
+        const Vec2d u = (*q2 - *q1).normalized();
+        const Vec2d ur = (r.end2 - r.end1).normalized();
+        const double tol_px = 3.0 * options_.line_transfer_tolerance_px;
+        consistent = std::abs(u.dot(ur)) >= std::cos(DegToRad(3.0 * options_.line_transfer_angle_deg)) &&
+                     std::abs(r.line.SignedDistance(*q1)) <= tol_px && std::abs(r.line.SignedDistance(*q2)) <= tol_px;
+      }
+    }
+    if (consistent) {
+      line_pairs.emplace_back(a, b);
+    } else {
+      ++st.line_matches_rejected_by_plane;
+    }
+  }
   st.line_matches_topology = static_cast<int>(line_pairs.size());
   std::vector<char> left_used(fl.lines.size(), 0), right_used(fr.lines.size(), 0);
   for (const auto& [a, b] : line_pairs) {

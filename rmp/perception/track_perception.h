@@ -61,6 +61,7 @@ struct PerceptionOptions {
 struct PerceptionStats {
   std::array<int, 2> lines{0, 0}, points{0, 0};
   int point_matches = 0, line_matches_topology = 0, line_matches_transfer = 0;
+  int line_matches_rejected_by_plane = 0;  // topology matches the ground plane contradicts
   int points_triangulated = 0, lines_triangulated = 0;
   int ground_samples_used = 0, ground_samples_rejected = 0;
   int edges = 0, strips = 0, pieces = 0;

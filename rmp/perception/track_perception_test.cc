@@ -113,6 +113,29 @@ TEST(TrackPerceptionTest, FindsACornerAndATapeEnd) {
   EXPECT_GT(res->stats.points_triangulated, 0);
 }
 
+// An acute corner (the track turns by 135 deg): near the corner two edges run through one IDI point in
+// each image, and line matches by topology alone may pair the wrong two; the ground plane rejects
+// those, so the corner is found from every distance as it comes into view.
+TEST(TrackPerceptionTest, FindsAnAcuteCornerFromEveryDistance) {
+  const StereoRig rig = TestRig();
+  auto perception = TrackPerception::Create(rig, {});
+  ASSERT_TRUE(perception.ok());
+  const double turn = DegToRad(-135.0);
+  int frames = 0, rejected = 0;
+  for (double ahead = 1.4; ahead <= 2.61; ahead += 0.1) {
+    const std::vector<Vec2d> centre = {{-1, 0}, {ahead, 0}, {ahead + 3.0 * std::cos(turn), 3.0 * std::sin(turn)}};
+    const auto [l, r] = RenderPair(TapeScene(centre), rig, Rigid3d::Identity(), 7);
+    auto res = (*perception)->Process(l, r, 0);
+    ASSERT_TRUE(res.ok()) << res.status().ToString();
+    ++frames;
+    rejected += res->stats.line_matches_rejected_by_plane;
+    ASSERT_FALSE(res->observation.pieces.empty()) << "corner " << ahead << " m ahead: no tape found";
+    EXPECT_LT(MaxDistanceToTrack(res->observation, centre), 0.02) << "corner " << ahead << " m ahead";
+  }
+  EXPECT_EQ(frames, 13);
+  RecordProperty("topology_matches_rejected_by_the_plane", rejected);
+}
+
 TEST(TrackPerceptionTest, RefinesTheGroundPlaneWhenThePlatformPitches) {
   // The platform leans forward (nose down) by 2 deg (balancing while it accelerates); the calibration assumes it
   // stands level. Placed with the calibration's plane the far tape is off; the refined plane fixes it.

@@ -2,6 +2,7 @@
 // against a minimal RMP responder on a second socket of the same interface. Skips without the
 // variable; a missing interface is a failure.
 #include <gtest/gtest.h>
+#include <unistd.h>
 #include <net/if.h>
 
 #include <algorithm>
@@ -89,7 +90,7 @@ TEST(RmpSocketCanTest, DriverConfiguresDrivesAndStopsOverARealCanInterface) {
   pc_side.filters = {{0x400, 0x7F8, false, false}, {kRmpIdCuStatus, 0x7FF, false, false}};
   auto pc_bus = drivers::SocketCanBus::Open(pc_side, &clock);
   ASSERT_TRUE(pc_bus.ok()) << pc_bus.status().ToString();
-  const std::string log_path = (std::filesystem::path(::testing::TempDir()) / "rmp_socketcan.log").string();
+  const std::string log_path = (std::filesystem::path(::testing::TempDir()) / ("rmp_socketcan_" + std::to_string(::getpid()) + ".log")).string();
   replay::CandumpWriterOptions log_options;
   log_options.interface = iface;
   auto log = replay::CandumpWriter::Open(log_path, log_options);

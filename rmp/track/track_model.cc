@@ -354,8 +354,11 @@ Result<TrackUpdateStats> TrackModel::Update(const TrackObservation& observation,
   // contradicted (in view, no tape), it ends there.
   std::size_t unconfirmed = samples_.size();
   while (unconfirmed > progress_ + 2 && samples_[unconfirmed - 1].seen_ns != observation.timestamp_ns && !samples_[unconfirmed - 1].gap) --unconfirmed;
+  // Only a sample this view contradicts (in view, no tape) ends it: one out of view with no support
+  // left was never seen again, which is no evidence (it lies between the vehicle and the footprints,
+  // or the view is blank because perception failed on this pair).
   for (std::size_t j = unconfirmed; j < samples_.size(); ++j) {
-    if (samples_[j].support <= 0) {
+    if (samples_[j].support <= 0 && !samples_[j].gap && InView(footprints, samples_[j].xy)) {
       stats.samples_dropped += static_cast<int>(samples_.size() - j);
       samples_.resize(std::max<std::size_t>(j, progress_ + 2));
       end_seen_ = false;

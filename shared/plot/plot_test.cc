@@ -1,6 +1,7 @@
 #include "shared/plot/plot.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <opencv2/core.hpp>
@@ -85,7 +86,7 @@ TEST(PlotTest, BadDataIsRefusedNamingTheSeries) {
 TEST(PlotTest, SavesAtomically) {
   Figure f;
   f.AddLine({0, 1}, {0, 1}, "", kBlue);
-  const std::string path = ::testing::TempDir() + "/plot_test.png";
+  const std::string path = ::testing::TempDir() + "/plot_test_" + std::to_string(::getpid()) + ".png";
   ASSERT_TRUE(f.SavePng(path).ok());
   EXPECT_FALSE(cv::imread(path).empty());
   EXPECT_FALSE(f.SavePng("/nonexistent-dir/x.png").ok());

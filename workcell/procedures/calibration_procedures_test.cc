@@ -2,6 +2,7 @@
 #include "workcell/procedures/calibration_procedures.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -91,10 +92,14 @@ TEST(CalibrationProceduresTest, RailAcquisitionChoosesPointsOnMoreThanOneWall) {
 class CalibrateCommandTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = std::filesystem::path(::testing::TempDir()) / "calibrate_command_test";
+    // One folder per test and process: ctest runs the tests of this fixture in parallel.
+    dir_ = std::filesystem::path(::testing::TempDir()) /
+           ("calibrate_command_test_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) +
+            "_" + std::to_string(::getpid()));
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_);
   }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
   int Run(std::vector<std::string> args) {
     CliApp cli("test", "idi-workcell");
     AddCalibrateCommand(cli);
