@@ -321,8 +321,31 @@ Result<Correspondences> MatchViews(const std::vector<CorrespondenceView>& views,
       ++out.pairs_matched;
       const PairMatches m = MatchViewPair(*views[v].features, *views[w].features, *f, options);
       for (std::size_t k = 0; k < m.points.size(); ++k) {
+        // Agreement of the other views (the trifocal check of N views): the pair's point, triangulated,
+        // must land on an IDI point of the views that see it. A match that is consistent in its pair only
+        // (a pattern of corners shifted along the epipolar lines, whose topology agrees) finds none, so
+        // chaining takes the agreeing edges first and the ghost's edges then conflict.
+        const Vec2d xa = views[v].features->points[static_cast<std::size_t>(m.points[k].first)].xy;
+        const Vec2d xb = views[w].features->points[static_cast<std::size_t>(m.points[k].second)].xy;
+        int agree = 0;
+        if (const auto tp = TriangulatePoint({{&pinhole[v], views[v].cam_from_world, xa},
+                                              {&pinhole[w], views[w].cam_from_world, xb}},
+                                             options.min_ray_angle_deg * kPi / 180.0)) {
+          for (std::size_t u = 0; u < views.size(); ++u) {
+            if (u == v || u == w) continue;
+            const auto px = Project(pinhole[u], views[u].cam_from_world * tp->xyz);
+            if (!px) continue;
+            for (const ViewPoint& q : views[u].features->points) {
+              if ((q.xy - *px).norm() <= options.max_reprojection_px) {
+                ++agree;
+                break;
+              }
+            }
+          }
+        }
+        if (static_cast<int>(views.size()) >= 3 && agree < options.min_agreeing_views) continue;
         point_edges.push_back({{static_cast<int>(v), m.points[k].first}, {static_cast<int>(w), m.points[k].second},
-                               1 + m.point_support[k]});
+                               1 + m.point_support[k] + 8 * agree});
       }
       for (const auto& [la, lb] : m.lines) {
         line_edges.push_back({{static_cast<int>(v), la}, {static_cast<int>(w), lb}, 1});
@@ -425,3 +448,4 @@ Result<Correspondences> MatchViews(const std::vector<CorrespondenceView>& views,
 }
 
 }  // namespace idi
+

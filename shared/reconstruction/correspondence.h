@@ -26,9 +26,12 @@ struct CorrespondenceOptions {
   bool accept_unique_unsupported = true;  // a lone candidate, unique both ways, with the same line count
   double max_reprojection_px = 1.5;     // track check after triangulation
   double min_ray_angle_deg = 1.0;       // views closer than this cannot triangulate a track
+  // With three or more views, a pair's point match must be confirmed by this many other views (its
+  // triangulated point lands on an IDI point there); 0 keeps every pair match.
+  int min_agreeing_views = 1;
   bool Check() const {
     return epipolar_tolerance_px > 0 && segment_margin_px >= 0 && min_support >= 0 && max_reprojection_px > 0 &&
-           min_ray_angle_deg >= 0;
+           min_ray_angle_deg >= 0 && min_agreeing_views >= 0;
   }
 };
 

@@ -101,16 +101,7 @@ Status RunReconstruct(const ReconstructOptions& o) {
                "(reprojection RMS {:.3f} -> {:.3f} px)",
                r.model.points.size(), r.model.edges.size(), r.features_ms, r.correspondence_ms, r.adjustment_ms,
                r.adjustment.initial_rms_px, r.adjustment.final_rms_px);
-  nlohmann::json out;
-  out["points"] = nlohmann::json::array();
-  for (const ModelPoint& p : r.model.points) {
-    nlohmann::json vs = nlohmann::json::array();
-    for (const Observation& ob : p.observations) vs.push_back(ob.view);
-    out["points"].push_back(
-        {{"id", p.id}, {"xyz_mm", {p.xyz.x(), p.xyz.y(), p.xyz.z()}}, {"views", vs}, {"reproj_rms_px", p.reprojection_rms_px}});
-  }
-  out["edges"] = nlohmann::json::array();
-  for (const auto& [a, b] : r.model.edges) out["edges"].push_back({a, b});
+  const nlohmann::json out = StructureModelJson(r.model);
   if (!o.ply.empty()) IDI_RETURN_IF_ERROR(WriteFileAtomically(o.ply, ModelToPly(r.model)));
   if (!o.overlay_dir.empty()) {
     std::error_code ec;

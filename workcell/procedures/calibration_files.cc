@@ -200,6 +200,15 @@ Status WriteRailCalibration(const std::string& path, const calib::RailCalibratio
   return WriteFileAtomically(path, std::string(e.c_str()) + "\n");
 }
 
+Result<std::array<double, kRobotToRobotParamCount>> LoadRailCalibration(const std::string& path) {
+  ParamFileOptions o;
+  o.extra_keys = {"model", "comment", "statistics"};
+  IDI_ASSIGN_OR_RETURN(const ParamSet p, LoadParamFile(path, RobotToRobotParamSpecs(), o));
+  std::array<double, kRobotToRobotParamCount> psi{};
+  for (std::size_t i = 0; i < psi.size(); ++i) psi[i] = p.value(i);
+  return psi;
+}
+
 nlohmann::json ParamsJson(const ParamSet& set) {
   nlohmann::json j = nlohmann::json::object();
   for (std::size_t i = 0; i < set.size(); ++i) {

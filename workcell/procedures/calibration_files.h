@@ -32,6 +32,8 @@ Status WriteRobotCalibration(const std::string& path, const calib::RobotCalibrat
 // An arm's model from a robot calibration file (robot, laser and rail direction).
 Result<calib::ArmModel> LoadRobotCalibration(const std::string& path);
 Status WriteRailCalibration(const std::string& path, const calib::RailCalibrationResult& result);
+// psi of a rail calibration file (eq. 3.4's robot-to-robot transform).
+Result<std::array<double, kRobotToRobotParamCount>> LoadRailCalibration(const std::string& path);
 
 // {"alpha2_deg": {"value": .., "std": ..}, ...} in file units.
 nlohmann::json ParamsJson(const ParamSet& set);

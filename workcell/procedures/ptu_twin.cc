@@ -64,6 +64,14 @@ Status PtuTwinOptions::Check() const {
   return Status::Ok();
 }
 
+std::array<calib::PtuCameraModel, 2> SampleHeadTruth(unsigned seed, const calib::PtuTruthOptions& options) {
+  std::mt19937_64 truth_rng(seed * 104729ULL + 3);
+  std::array<calib::PtuCameraModel, 2> out;
+  out[0] = calib::SamplePtuTruth(BiclopsSide::kLeft, options, truth_rng);
+  out[1] = calib::SamplePtuTruth(BiclopsSide::kRight, options, truth_rng);
+  return out;
+}
+
 PtuTwin::PtuTwin(const PtuTwinOptions& options)
     : options_(options),
       cell_([&] {
@@ -74,10 +82,9 @@ PtuTwin::PtuTwin(const PtuTwinOptions& options)
       noise_rng_(options.seed * 7919ULL + 17) {
   const Status ok = options_.Check();
   IDI_CHECK(ok.ok(), ok.ToString());
-  std::mt19937_64 truth_rng(options.seed * 104729ULL + 3);
+  truth_ = SampleHeadTruth(options.seed, options_.truth);
   for (std::size_t i = 0; i < 2; ++i) {
     const BiclopsSide side = i == 0 ? BiclopsSide::kLeft : BiclopsSide::kRight;
-    truth_[i] = calib::SamplePtuTruth(side, options_.truth, truth_rng);
     SimPtuOptions po;
     po.name = std::string("sim-ptu-") + BiclopsSideName(side);
     ptu_[i] = std::make_unique<SimPanTilt>(po, &cell_.clock());

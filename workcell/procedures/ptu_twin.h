@@ -60,6 +60,10 @@ struct PtuTwinOptions {
   Status Check() const;
 };
 
+// The Biclops cameras as built in the twin of `seed` (left, right): the same cameras for every twin of
+// that seed (the pan-tilt calibration's and the scan cell's), like one physical head.
+std::array<calib::PtuCameraModel, 2> SampleHeadTruth(unsigned seed, const calib::PtuTruthOptions& options);
+
 class PtuTwin {
  public:
   explicit PtuTwin(const PtuTwinOptions& options);

@@ -1,6 +1,8 @@
 #include "workcell/procedures/structure.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <opencv2/imgproc.hpp>
 
 #include "shared/reconstruction/features_adapter.h"
@@ -16,6 +18,48 @@ double MsSince(std::chrono::steady_clock::time_point t0) {
 Vec2d Redistort(const CameraModel& c, const Vec2d& undistorted) {
   const Vec3d p((undistorted.x() - c.cx()) / c.fx(), (undistorted.y() - c.cy()) / c.fy(), 1.0);
   return ProjectToPixel(c.params.data(), p);
+}
+
+bool InsideRoi(const cv::Mat& roi, const Vec2d& px) {
+  const int x = static_cast<int>(std::lround(px.x())), y = static_cast<int>(std::lround(px.y()));
+  return x >= 0 && y >= 0 && x < roi.cols && y < roi.rows && roi.at<uint8_t>(y, x) != 0;
+}
+
+// Keeps the IDI points inside the region and the lines that reach into it (a point of the segment, its
+// ends and 9 stations between, inside), with the indices renumbered.
+AdaptedFeatures KeepInsideRoi(const AdaptedFeatures& in, const cv::Mat& roi, const CameraModel& camera) {
+  AdaptedFeatures out;
+  std::vector<int> line_map(in.features.lines.size(), -1), point_map(in.features.points.size(), -1);
+  for (std::size_t l = 0; l < in.features.lines.size(); ++l) {
+    const ViewLine& vl = in.features.lines[l];
+    bool inside = false;
+    for (int k = 0; k <= 10 && !inside; ++k) {
+      inside = InsideRoi(roi, Redistort(camera, vl.end1 + (vl.end2 - vl.end1) * (k / 10.0)));
+    }
+    if (!inside) continue;
+    line_map[l] = static_cast<int>(out.features.lines.size());
+    out.features.lines.push_back(vl);
+    out.line_sigma_px.push_back(in.line_sigma_px[l]);
+  }
+  for (std::size_t i = 0; i < in.features.points.size(); ++i) {
+    const ViewPoint& vp = in.features.points[i];
+    if (!InsideRoi(roi, Redistort(camera, vp.xy))) continue;
+    ViewPoint kept = vp;
+    kept.lines.clear();
+    for (int l : vp.lines) {
+      if (line_map[static_cast<std::size_t>(l)] >= 0) kept.lines.push_back(line_map[static_cast<std::size_t>(l)]);
+    }
+    point_map[i] = static_cast<int>(out.features.points.size());
+    out.features.points.push_back(std::move(kept));
+  }
+  for (ViewLine& vl : out.features.lines) {
+    std::vector<int> pts;
+    for (int i : vl.points) {
+      if (point_map[static_cast<std::size_t>(i)] >= 0) pts.push_back(point_map[static_cast<std::size_t>(i)]);
+    }
+    vl.points = std::move(pts);
+  }
+  return out;
 }
 
 }  // namespace
@@ -37,6 +81,9 @@ Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& v
     if (!sv.cam_from_world.rotation.allFinite() || !sv.cam_from_world.translation.allFinite()) {
       return InvalidArgument(who + ": pose is not finite");
     }
+    if (!sv.roi.empty() && (sv.roi.type() != CV_8UC1 || sv.roi.size() != sv.image.size())) {
+      return InvalidArgument(who + ": the region of interest must be an 8-bit mask of the image's size");
+    }
     const double det = sv.cam_from_world.rotation.determinant();
     if (std::abs(det - 1.0) > 1e-6 ||
         (sv.cam_from_world.rotation * sv.cam_from_world.rotation.transpose() - Mat3d::Identity()).norm() > 1e-6) {
@@ -51,7 +98,7 @@ Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& v
     if (gray.channels() == 3) cv::cvtColor(sv.image, gray, cv::COLOR_BGR2GRAY);
     IDI_ASSIGN_OR_RETURN(const FeatureResult f,
                          DetectFeatures(gray, options.features, std::optional<CameraModel>(sv.camera)));
-    adapted.push_back(FromFeatureResult(f));
+    adapted.push_back(sv.roi.empty() ? FromFeatureResult(f) : KeepInsideRoi(FromFeatureResult(f), sv.roi, sv.camera));
     out.features.push_back(f);
   }
   out.features_ms = MsSince(t0);
@@ -68,7 +115,15 @@ Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& v
     std::vector<Vec3d> xyz;
     for (const ModelPoint& p : out.model.points) xyz.push_back(p.xyz);
     std::vector<optim::BaView> ba_views;
-    for (const StructureView& sv : views) ba_views.push_back({sv.camera, sv.cam_from_world, 0});
+    // One intrinsics group per physical camera (views with identical intrinsics): the left and right
+    // cameras of a stereo head must not share one set of parameters.
+    std::vector<std::vector<double>> groups;
+    for (const StructureView& sv : views) {
+      const std::vector<double> k(sv.camera.params.begin(), sv.camera.params.end());
+      auto it = std::find(groups.begin(), groups.end(), k);
+      if (it == groups.end()) it = groups.insert(groups.end(), k);
+      ba_views.push_back({sv.camera, sv.cam_from_world, static_cast<int>(it - groups.begin())});
+    }
     std::vector<optim::BaPointObservation> obs;
     for (std::size_t i = 0; i < out.model.points.size(); ++i) {
       for (const Observation& o : out.model.points[i].observations) {
@@ -134,6 +189,20 @@ cv::Mat DrawModelOverlay(const StructureView& view, const StructureModel& model,
                 cv::Scalar(0, 0, 255), 1, cv::LINE_AA);
   }
   return canvas;
+}
+
+nlohmann::json StructureModelJson(const StructureModel& model) {
+  nlohmann::json out;
+  out["points"] = nlohmann::json::array();
+  for (const ModelPoint& p : model.points) {
+    nlohmann::json vs = nlohmann::json::array();
+    for (const Observation& ob : p.observations) vs.push_back(ob.view);
+    out["points"].push_back(
+        {{"id", p.id}, {"xyz_mm", {p.xyz.x(), p.xyz.y(), p.xyz.z()}}, {"views", vs}, {"reproj_rms_px", p.reprojection_rms_px}});
+  }
+  out["edges"] = nlohmann::json::array();
+  for (const auto& [a, b] : model.edges) out["edges"].push_back({a, b});
+  return out;
 }
 
 }  // namespace idi::workcell

@@ -3,6 +3,7 @@
 // adjustment with point and line residuals. Used by `idi-workcell reconstruct` and the scan job.
 #pragma once
 
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -19,6 +20,10 @@ struct StructureView {
   cv::Mat image;            // 8-bit grey (colour is converted)
   CameraModel camera;       // intrinsics with distortion; width/height must match the image
   Rigid3d cam_from_world;   // from the calibrated chain (§8.3), mm
+  // Optional region of interest (8-bit, the image's size; non-zero inside): IDI points outside it and
+  // lines that do not reach into it are left out of the correspondence (e.g. the volume above the
+  // rotary table, so the floor's tiles and the table's rim do not compete with the object's corners).
+  cv::Mat roi;
 };
 
 struct StructureOptions {
@@ -40,6 +45,9 @@ struct StructureResult {
 // InvalidArgument for fewer than two views, an empty image, a camera that does not match its image,
 // or a non-finite pose; views without features simply contribute nothing.
 Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& views, const StructureOptions& options);
+
+// {points: [{id, xyz_mm, views, reproj_rms_px}], edges: [[a, b], ...]}
+nlohmann::json StructureModelJson(const StructureModel& model);
 
 // The model drawn back into a view (like Fig. 8.16): edges as lines, points as labelled circles.
 cv::Mat DrawModelOverlay(const StructureView& view, const StructureModel& model, const FeatureResult* features);

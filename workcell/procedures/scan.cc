@@ -1,0 +1,469 @@
+#include "workcell/procedures/scan.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "shared/kinematics/aiming.h"
+#include "shared/kinematics/biclops.h"
+#include "shared/kinematics/rtu.h"
+#include "shared/kinematics/rx130.h"
+#include "shared/util/atomic_file.h"
+#include "shared/util/units.h"
+
+namespace idi::workcell {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr std::chrono::milliseconds kPtuTimeout{10'000};
+constexpr std::chrono::milliseconds kGrabTimeout{2'000};
+
+double Seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+Rigid3d WorldFromBase(const calib::ArmModel& model, int arm_index, const std::array<double, 4>& psi, double rail_mm) {
+  const Rigid3d rail_from_base = RailFromBase(model.rail.value(kPhiL), model.rail.value(kPhiM), rail_mm);
+  return arm_index == 0 ? rail_from_base : Rail1FromRail2(psi.data()) * rail_from_base;
+}
+
+// The head pose for a station: the TCF's camera diagonal (the nominal cameras look along the TCF's
+// (1, 1, 0) with image-down along its z, Biclops as mounted, §3.4) along `view_dir`, the cameras' midpoint
+// `camera_mid` (nominally 40, 40, 275 mm from the TCF).
+Rigid3d WorldFromTcfForView(const Vec3d& camera_mid, const Vec3d& view_dir) {
+  const Vec3d axis_tcf = Vec3d(1, 1, 0).normalized(), down_tcf = Vec3d::UnitZ();
+  Vec3d down = Vec3d(0, 0, -1) - Vec3d(0, 0, -1).dot(view_dir) * view_dir;
+  down.normalize();
+  Mat3d a, b;
+  a << axis_tcf, down_tcf, axis_tcf.cross(down_tcf);
+  b << view_dir, down, view_dir.cross(down);
+  Rigid3d out;
+  out.rotation = b * a.transpose();
+  out.translation = camera_mid - out.rotation * Vec3d(40, 40, 275);
+  return out;
+}
+
+// The projection of the object region (a cylinder on the table) into a view: the convex hull of its rims.
+cv::Mat ObjectRegionMask(const StructureView& v, const ScanOptions& o) {
+  std::vector<cv::Point> pts;
+  for (int k = 0; k < 72; ++k) {
+    const double a = 2 * kPi * k / 72.0;
+    for (const double h : {0.0, o.object_region_height_mm}) {
+      const Vec3d p = o.table_centre_world + Vec3d(o.object_region_radius_mm * std::cos(a),
+                                                   o.object_region_radius_mm * std::sin(a), h);
+      const Vec3d pc = v.cam_from_world * p;
+      if (pc.z() <= 1.0) return cv::Mat();  // a camera inside the region: no mask
+      const Vec2d px = ProjectToPixel(v.camera.params.data(), pc);
+      if (!px.allFinite() || px.cwiseAbs().maxCoeff() > 1e6) return cv::Mat();
+      pts.emplace_back(static_cast<int>(std::lround(px.x())), static_cast<int>(std::lround(px.y())));
+    }
+  }
+  std::vector<cv::Point> hull;
+  cv::convexHull(pts, hull);
+  cv::Mat mask = cv::Mat::zeros(v.image.size(), CV_8UC1);
+  cv::fillConvexPoly(mask, hull, cv::Scalar(255));
+  return mask;
+}
+
+Status StopArms(ScanDevices& d) {
+  Status s = Status::Ok();
+  for (hal::ArmDevice* a : {d.arm1, d.arm2}) {
+    if (a == nullptr) continue;
+    const Status st = a->Stop();
+    if (!st.ok() && s.ok()) s = st;
+  }
+  return s;
+}
+
+// Pose of the flange in robot k's base for a palm pose in the world.
+Rigid3d BaseFromFlangeForPalm(const Rigid3d& base_from_world, const Rigid3d& world_from_palm, const Rigid3d& flange_from_palm) {
+  return base_from_world * world_from_palm * flange_from_palm.Inverse();
+}
+
+Result<Joints> SolveArm(const ParamSet& robot, const Joints& start, const Rigid3d& base_from_flange,
+                        const std::vector<Joints>& fallbacks) {
+  auto ik = SolveFlangePose(robot, start, base_from_flange, Rx130JointLimits());
+  for (std::size_t i = 0; !(ik.ok() && ik->residual_mm < 0.05) && i < fallbacks.size(); ++i) {
+    ik = SolveFlangePose(robot, fallbacks[i], base_from_flange, Rx130JointLimits());
+  }
+  if (!ik.ok()) return ik.status();
+  if (ik->residual_mm >= 0.05) {
+    return NotFound(fmt::format("pose not reachable (residual {:.2f} mm)", ik->residual_mm));
+  }
+  return ik->q;
+}
+
+bool IsCancelled(const ScanOptions& o) { return o.cancelled && o.cancelled(); }
+
+void Progress(const ScanOptions& o, double f, const std::string& what) {
+  spdlog::info("scan: {} ({:.0f} %)", what, 100 * f);
+  if (o.progress) o.progress(f, what);
+}
+
+}  // namespace
+
+Status ScanOptions::Check() const {
+  if (!table_centre_world.allFinite()) return InvalidArgument("scan: the table centre must be finite");
+  if (!(table_radius_mm > 0)) return InvalidArgument("scan: the table radius must be positive");
+  if (azimuths_deg.empty()) return InvalidArgument("scan: at least one station (azimuth) is needed");
+  for (double a : azimuths_deg) {
+    if (!std::isfinite(a)) return InvalidArgument("scan: station azimuths must be finite");
+  }
+  if (!(object_region_radius_mm > 0 && object_region_height_mm > 0)) {
+    return InvalidArgument("scan: the object region's radius and height must be positive");
+  }
+  if (!(view_distance_mm > 200 && view_distance_mm < 3000)) {
+    return InvalidArgument(fmt::format("scan: view distance {} mm is outside (200, 3000)", view_distance_mm));
+  }
+  if (!(elevation_deg > 5 && elevation_deg < 89)) return InvalidArgument("scan: elevation must be in (5, 89) deg");
+  if (!std::isfinite(aim_height_mm) || !(table_tolerance_mm >= 0)) {
+    return InvalidArgument("scan: the aim height and the table tolerance must be finite, the tolerance non-negative");
+  }
+  if (!place_offset_world.allFinite()) return InvalidArgument("scan: the place offset must be finite");
+  if (rail2_candidates_mm.empty()) return InvalidArgument("scan: robot 2 needs at least one rail position to try");
+  if (!grasp.Check()) return InvalidArgument("scan: invalid grasp options");
+  return Status::Ok();
+}
+
+Rigid3d ChainWorldFromCamera(const ScanCalibration& c, int camera, const Joints& q, double rail_mm, double pan_rad,
+                             double tilt_rad) {
+  const Rigid3d base_from_flange = Rx130BaseFromFlange(c.robot1.robot.data(), q.data());
+  const calib::PtuCameraModel& m = c.cameras[static_cast<std::size_t>(camera)];
+  return WorldFromBase(c.robot1, 0, c.psi, rail_mm) *
+         m.BaseFromCamera(TcfPoseFromTransform(base_from_flange), pan_rad, tilt_rad);
+}
+
+Result<std::array<double, 2>> FixatePtu(const ScanCalibration& c, int camera, const Joints& q, double rail_mm,
+                                        const Vec3d& target_world, const hal::PanTiltLimits& limits) {
+  const calib::PtuCameraModel& m = c.cameras[static_cast<std::size_t>(camera)];
+  const CameraModel k = m.Camera();
+  const Vec2d centre(k.cx(), k.cy());
+  auto residual = [&](const Vec2d& pt) -> std::optional<Vec2d> {
+    const Rigid3d cam_from_world = ChainWorldFromCamera(c, camera, q, rail_mm, pt.x(), pt.y()).Inverse();
+    const Vec3d p = cam_from_world * target_world;
+    if (p.z() <= 1.0) return std::nullopt;
+    const auto px = Project(k, p);
+    if (!px) return std::nullopt;
+    return Vec2d(*px - centre);
+  };
+  Vec2d pt(0.5 * (limits.pan_min_rad + limits.pan_max_rad), 0.5 * (limits.tilt_min_rad + limits.tilt_max_rad));
+  // Start from the direction of the target in the pan frame, roughly: a coarse grid of 9 x 5 starts.
+  double best = 1e18;
+  for (int i = 0; i <= 8; ++i) {
+    for (int j = 0; j <= 4; ++j) {
+      const Vec2d s(limits.pan_min_rad + (limits.pan_max_rad - limits.pan_min_rad) * i / 8.0,
+                    limits.tilt_min_rad + (limits.tilt_max_rad - limits.tilt_min_rad) * j / 4.0);
+      const auto r = residual(s);
+      if (r && r->norm() < best) {
+        best = r->norm();
+        pt = s;
+      }
+    }
+  }
+  if (best > 1e17) return NotFound("the target is behind the camera at every pan and tilt");
+  for (int it = 0; it < 30; ++it) {
+    const auto r = residual(pt);
+    if (!r) return NotFound("the target went behind the camera while fixating");
+    if (r->norm() < 0.05) break;
+    Eigen::Matrix2d j;
+    const double h = 1e-6;
+    for (int a = 0; a < 2; ++a) {
+      Vec2d d = pt;
+      d[a] += h;
+      const auto rd = residual(d);
+      if (!rd) return NotFound("the target went behind the camera while fixating");
+      j.col(a) = (*rd - *r) / h;
+    }
+    if (std::abs(j.determinant()) < 1e-9) return NotFound("pan and tilt do not move the target in the image");
+    pt -= j.inverse() * *r;
+  }
+  const auto r = residual(pt);
+  if (!r || r->norm() > 1.0) return NotFound("the pan-tilt unit cannot bring the target to the image centre");
+  if (!limits.Contains(pt.x(), pt.y())) {
+    return NotFound(fmt::format("fixating needs pan {:.1f} deg, tilt {:.1f} deg: outside the unit's range",
+                                RadToDeg(pt.x()), RadToDeg(pt.y())));
+  }
+  return std::array<double, 2>{pt.x(), pt.y()};
+}
+
+Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const ScanOptions& o) {
+  IDI_RETURN_IF_ERROR(o.Check());
+  if (d.arm1 == nullptr || d.rail1 == nullptr || d.ptu[0] == nullptr || d.ptu[1] == nullptr || d.camera[0] == nullptr ||
+      d.camera[1] == nullptr) {
+    return InvalidArgument("scan: arm 1, its rail, both pan-tilt units and both cameras are needed");
+  }
+  if (o.pick && (d.arm2 == nullptr || d.rail2 == nullptr || d.hand == nullptr)) {
+    return InvalidArgument("scan: picking needs arm 2, its rail and the hand");
+  }
+  auto fail = [&](Status s, const std::string& step) -> Status {
+    const Status stop = StopArms(d);
+    if (!stop.ok()) spdlog::error("scan: stopping the arms after a failure: {}", stop.ToString());
+    return s.WithContext("scan: " + step);
+  };
+  auto cancelled = [&]() -> Status {
+    const Status stop = StopArms(d);
+    if (!stop.ok()) spdlog::error("scan: stopping the arms on cancel: {}", stop.ToString());
+    return Cancelled("scan: cancelled by the operator");
+  };
+  if (!o.out_dir.empty()) {
+    std::error_code ec;
+    fs::create_directories(o.out_dir, ec);
+    if (ec) return IoError(o.out_dir + ": cannot create the output folder: " + ec.message());
+  }
+
+  ScanReport report;
+  const double t0 = Seconds();
+  // 1. Views: stations around the table, both cameras fixating it.
+  std::array<hal::PanTiltLimits, 2> limits;
+  for (int k = 0; k < 2; ++k) {
+    auto l = d.ptu[static_cast<std::size_t>(k)]->Limits();
+    if (!l.ok()) return fail(l.status(), "reading the pan-tilt limits");
+    limits[static_cast<std::size_t>(k)] = *l;
+    hal::CameraSettings cs;
+    cs.width = c.cameras[static_cast<std::size_t>(k)].width;
+    cs.height = c.cameras[static_cast<std::size_t>(k)].height;
+    const Status st = d.camera[static_cast<std::size_t>(k)]->Start(cs);
+    if (!st.ok()) return fail(st, "starting the cameras");
+  }
+  const Vec3d aim = o.table_centre_world + Vec3d(0, 0, o.aim_height_mm);
+  const double el = DegToRad(o.elevation_deg);
+  Joints q_prev = JointsFromDeg({0, -40, 110, 0, 20, 0});
+  for (std::size_t s = 0; s < o.azimuths_deg.size(); ++s) {
+    if (IsCancelled(o)) return cancelled();
+    Progress(o, 0.05 + 0.4 * static_cast<double>(s) / static_cast<double>(o.azimuths_deg.size()),
+             fmt::format("station {}/{} (azimuth {:.0f} deg)", s + 1, o.azimuths_deg.size(), o.azimuths_deg[s]));
+    const double az = DegToRad(o.azimuths_deg[s]);
+    const Vec3d v(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), -std::sin(el));
+    const Vec3d mid = aim - o.view_distance_mm * v;
+    const Rigid3d world_from_tcf = WorldFromTcfForView(mid, v);
+    // Robot 1's rail position: the base a little behind the head along the rail, else nearby positions.
+    std::optional<std::pair<double, Joints>> pose;
+    Status last = NotFound("no rail position tried");
+    for (const double shift : {0.0, -250.0, 250.0, -500.0, 500.0, -750.0}) {
+      const double rail = std::clamp(world_from_tcf.translation.x() - 250.0 + shift, 0.0, o.rail1_max_mm);
+      const Rigid3d base_from_tcf = WorldFromBase(c.robot1, 0, c.psi, rail).Inverse() * world_from_tcf;
+      Joints start = q_prev;
+      start[0] = std::atan2(base_from_tcf.translation.y(), base_from_tcf.translation.x());
+      auto q = SolveArm(c.robot1.robot, start, base_from_tcf, {JointsFromDeg({0, -40, 110, 0, 20, 0})});
+      if (q.ok()) {
+        pose = std::make_pair(rail, *q);
+        break;
+      }
+      last = q.status();
+    }
+    if (!pose) return fail(last, fmt::format("station {}: no reachable head pose", s + 1));
+    Status st = d.rail1->MoveTo(pose->first, o.move);
+    if (st.ok()) st = d.arm1->MoveJoints(pose->second, o.move);
+    if (!st.ok()) return fail(st, fmt::format("station {}: moving arm 1", s + 1));
+    q_prev = pose->second;
+    // What the encoders say now (the projection matrices use readings, not commands).
+    auto js = d.arm1->ReadJoints();
+    auto rs = d.rail1->Read();
+    if (!js.ok()) return fail(js.status(), "reading arm 1's joints");
+    if (!rs.ok()) return fail(rs.status(), "reading rail 1");
+    for (int k = 0; k < 2; ++k) {
+      const std::size_t ki = static_cast<std::size_t>(k);
+      auto pt = FixatePtu(c, k, js->q_rad, rs->position_mm, aim, limits[ki]);
+      if (!pt.ok()) return fail(pt.status(), fmt::format("station {}, {} camera", s + 1, k == 0 ? "left" : "right"));
+      st = d.ptu[ki]->MoveTo((*pt)[0], (*pt)[1], kPtuTimeout);
+      if (!st.ok()) return fail(st, "moving the pan-tilt unit");
+      auto ps = d.ptu[ki]->Read();
+      if (!ps.ok()) return fail(ps.status(), "reading the pan-tilt unit");
+      auto image = d.camera[ki]->Grab(kGrabTimeout);
+      if (!image.ok()) return fail(image.status(), "grabbing an image");
+      ScanView sv;
+      sv.station = static_cast<int>(s);
+      sv.arm1_q = js->q_rad;
+      sv.rail1_mm = rs->position_mm;
+      sv.pan_rad = ps->pan_rad;
+      sv.tilt_rad = ps->tilt_rad;
+      sv.view.name = fmt::format("s{}_{}", s + 1, k == 0 ? "left" : "right");
+      if (image->pixels.channels() == 3) {
+        cv::cvtColor(image->pixels, sv.view.image, cv::COLOR_BGR2GRAY);
+      } else {
+        sv.view.image = image->pixels;
+      }
+      sv.view.camera = c.cameras[ki].Camera();
+      sv.view.cam_from_world = ChainWorldFromCamera(c, k, js->q_rad, rs->position_mm, ps->pan_rad, ps->tilt_rad).Inverse();
+      sv.view.roi = ObjectRegionMask(sv.view, o);
+      if (!o.out_dir.empty()) {
+        const fs::path file = fs::path(o.out_dir) / (sv.view.name + ".png");
+        if (!cv::imwrite(file.string(), sv.view.image)) return IoError(file.string() + ": cannot write the image");
+        if (!sv.view.roi.empty()) cv::imwrite((fs::path(o.out_dir) / (sv.view.name + "_roi.png")).string(), sv.view.roi);
+      }
+      report.views.push_back(std::move(sv));
+    }
+  }
+  const double t1 = Seconds();
+  report.acquisition_s = t1 - t0;
+
+  // 2. Structure.
+  if (IsCancelled(o)) return cancelled();
+  Progress(o, 0.5, fmt::format("reconstructing from {} views", report.views.size()));
+  std::vector<StructureView> views;
+  for (const ScanView& v : report.views) views.push_back(v.view);
+  auto structure = ReconstructStructure(views, o.structure);
+  if (!structure.ok()) return fail(structure.status(), "reconstruction");
+  report.structure = std::move(*structure);
+  const StructureModel& model = report.structure.model;
+  std::vector<Vec3d> object;
+  for (std::size_t i = 0; i < model.points.size(); ++i) {
+    const Vec3d& p = model.points[i].xyz;
+    const Vec3d rel = p - o.table_centre_world;
+    if (rel.head<2>().norm() < o.object_region_radius_mm && rel.z() > -o.table_tolerance_mm &&
+        rel.z() < o.object_region_height_mm) {
+      report.object_points.push_back(static_cast<int>(i));
+      object.push_back(p);
+    }
+  }
+  const Correspondences& cc = report.structure.correspondences;
+  spdlog::info("scan: {} points, {} edges, {} on the object; reprojection RMS {:.3f} -> {:.3f} px; {} view pairs, "
+               "{} tracks split, {} observations rejected",
+               model.points.size(), model.edges.size(), object.size(), report.structure.adjustment.initial_rms_px,
+               report.structure.adjustment.final_rms_px, cc.pairs_matched, cc.conflicts_split, cc.observations_rejected);
+  if (!o.out_dir.empty()) {
+    IDI_RETURN_IF_ERROR(WriteFileAtomically((fs::path(o.out_dir) / "model.ply").string(), ModelToPly(model)));
+    for (std::size_t v = 0; v < views.size(); ++v) {
+      const fs::path file = fs::path(o.out_dir) / (views[v].name + "_model.png");
+      if (!cv::imwrite(file.string(), DrawModelOverlay(views[v], model, &report.structure.features[v]))) {
+        return IoError(file.string() + ": cannot write the overlay");
+      }
+    }
+  }
+  report.reconstruction_s = Seconds() - t1;
+  if (object.size() < 3) {
+    return fail(NotFound(fmt::format("only {} reconstructed points on the table: no object found", object.size())),
+                "finding the object");
+  }
+  // 3. Grasp (§8.11), in the world, then in robot 2's base (eq. 3.4).
+  auto plan = PlanTopGrasp(object, o.table_centre_world.z(), o.grasp);
+  if (!plan.ok()) return fail(plan.status(), "grasp planning");
+  report.grasp = *plan;
+  if (!o.pick) return report;
+
+  const double t2 = Seconds();
+  if (IsCancelled(o)) return cancelled();
+  Progress(o, 0.7, "picking");
+  PickReport& pick = report.pick;
+  pick.attempted = true;
+  // The palm above the contacts: the thumb's pad meets its face at the plan's half width.
+  double reading = 0, depth = 0;
+  const double half = 0.5 * report.grasp.width_mm;
+  if (!BarrettTipOnFace(c.hand, 2, report.grasp.spread_rad, half, &reading, &depth)) {
+    return fail(NotFound(fmt::format("the hand cannot close on {:.1f} mm", report.grasp.width_mm)), "grasp geometry");
+  }
+  const Rigid3d palm_from_grasp_at = Translation(0.0, 0.0, depth);  // grasp z points down, out of the palm
+  const Rigid3d world_from_palm_grasp = report.grasp.world_from_grasp * palm_from_grasp_at.Inverse();
+  const Rigid3d world_from_palm_approach = report.grasp.world_from_approach * palm_from_grasp_at.Inverse();
+  const Rigid3d world_from_palm_lift = report.grasp.world_from_lift * palm_from_grasp_at.Inverse();
+  const Rigid3d place = Translation(o.place_offset_world);
+  const std::vector<Rigid3d> palms = {world_from_palm_approach, world_from_palm_grasp, world_from_palm_lift,
+                                      place * world_from_palm_lift, place * world_from_palm_grasp * Translation(0.0, 0.0, -2.0),
+                                      place * world_from_palm_approach};
+  const std::vector<Joints> fallbacks = {JointsFromDeg({180, -40, 120, 0, 10, 0}), JointsFromDeg({150, -30, 110, 0, 20, 0}),
+                                         JointsFromDeg({-150, -30, 110, 0, 20, 0})};
+  std::vector<Joints> qs;
+  Status last = NotFound("no rail position tried");
+  for (const double rail2 : o.rail2_candidates_mm) {
+    if (rail2 < 0 || rail2 > o.rail2_max_mm) continue;
+    const Rigid3d base_from_world = WorldFromBase(c.robot2, 1, c.psi, rail2).Inverse();
+    std::vector<Joints> sol;
+    Joints start = fallbacks[0];
+    for (const Rigid3d& palm : palms) {
+      auto q = SolveArm(c.robot2.robot, start, BaseFromFlangeForPalm(base_from_world, palm, c.flange_from_palm), fallbacks);
+      if (!q.ok()) {
+        last = q.status();
+        break;
+      }
+      sol.push_back(*q);
+      start = *q;
+    }
+    if (sol.size() == palms.size()) {
+      qs = std::move(sol);
+      pick.rail2_mm = rail2;
+      report.base2_from_grasp = base_from_world * report.grasp.world_from_grasp;
+      break;
+    }
+  }
+  if (qs.empty()) return fail(last, "no rail position of robot 2 reaches the grasp");
+  auto step = [&](const Status& st, const std::string& what) -> Status {
+    if (st.ok()) return st;
+    return fail(st, what);
+  };
+  auto hs = d.hand->Read();
+  if (!hs.ok()) return fail(hs.status(), "reading the hand");
+  if (!hs->initialized) IDI_RETURN_IF_ERROR(step(d.hand->Initialize(), "initialising the hand"));
+  IDI_RETURN_IF_ERROR(step(d.hand->Open(), "opening the hand"));
+  IDI_RETURN_IF_ERROR(step(d.hand->SetSpread(report.grasp.spread_rad), "spreading the fingers"));
+  IDI_RETURN_IF_ERROR(step(d.rail2->MoveTo(pick.rail2_mm, o.move), "moving rail 2"));
+  IDI_RETURN_IF_ERROR(step(d.arm2->MoveJoints(qs[0], o.move), "approach"));
+  if (IsCancelled(o)) return cancelled();
+  IDI_RETURN_IF_ERROR(step(d.arm2->MoveJoints(qs[1], o.move), "descending to the grasp"));
+  IDI_RETURN_IF_ERROR(step(d.hand->Close(), "closing the hand"));
+  const double closed = DegToRad(c.hand.closed_deg);
+  auto stalled = [&](const hal::GripperState& g) {
+    int n = 0;
+    for (double f : g.finger_rad) n += f < closed - DegToRad(5.0) ? 1 : 0;
+    return n;
+  };
+  hs = d.hand->Read();
+  if (!hs.ok()) return fail(hs.status(), "reading the hand");
+  pick.finger_rad = hs->finger_rad;
+  pick.grasped = stalled(*hs) >= 2;
+  if (!pick.grasped) {
+    pick.outcome = "missed: the fingers closed without meeting the object";
+    IDI_RETURN_IF_ERROR(step(d.hand->Open(), "opening the hand"));
+    IDI_RETURN_IF_ERROR(step(d.arm2->MoveJoints(qs[0], o.move), "retreating"));
+    report.pick_s = Seconds() - t2;
+    return report;
+  }
+  IDI_RETURN_IF_ERROR(step(d.arm2->MoveJoints(qs[2], o.move), "lifting"));
+  hs = d.hand->Read();
+  if (!hs.ok()) return fail(hs.status(), "reading the hand");
+  pick.lifted = stalled(*hs) >= 2;
+  if (IsCancelled(o)) return cancelled();
+  Progress(o, 0.85, "placing");
+  IDI_RETURN_IF_ERROR(step(d.arm2->MoveJoints(qs[3], o.move), "carrying to the place position"));
+  IDI_RETURN_IF_ERROR(step(d.arm2->MoveJoints(qs[4], o.move), "putting down"));
+  IDI_RETURN_IF_ERROR(step(d.hand->Open(), "opening the hand"));
+  IDI_RETURN_IF_ERROR(step(d.arm2->MoveJoints(qs[5], o.move), "retreating"));
+  pick.placed = true;
+  pick.outcome = pick.lifted ? "picked and placed" : "grasped, but the fingers lost it while lifting";
+  report.pick_s = Seconds() - t2;
+  Progress(o, 1.0, pick.outcome);
+  return report;
+}
+
+nlohmann::json ScanReportJson(const ScanReport& r) {
+  nlohmann::json j = StructureModelJson(r.structure.model);
+  std::vector<bool> on_object(r.structure.model.points.size(), false);
+  for (int i : r.object_points) on_object[static_cast<std::size_t>(i)] = true;
+  for (std::size_t i = 0; i < on_object.size(); ++i) j["points"][i]["object"] = static_cast<bool>(on_object[i]);
+  j["views"] = nlohmann::json::array();
+  for (const ScanView& v : r.views) {
+    j["views"].push_back({{"name", v.view.name}, {"station", v.station}, {"rail1_mm", v.rail1_mm},
+                          {"pan_deg", RadToDeg(v.pan_rad)}, {"tilt_deg", RadToDeg(v.tilt_rad)}});
+  }
+  j["reprojection_rms_px"] = {{"before", r.structure.adjustment.initial_rms_px}, {"after", r.structure.adjustment.final_rms_px}};
+  const Vec3d g = r.grasp.world_from_grasp.translation;
+  j["grasp"] = {{"centre_mm", {g.x(), g.y(), g.z()}},
+                {"width_mm", r.grasp.width_mm},
+                {"spread_deg", RadToDeg(r.grasp.spread_rad)},
+                {"friction_margin_deg", RadToDeg(r.grasp.friction_margin_rad)},
+                {"quality", r.grasp.quality}};
+  j["pick"] = {{"attempted", r.pick.attempted}, {"grasped", r.pick.grasped},   {"lifted", r.pick.lifted},
+               {"placed", r.pick.placed},       {"rail2_mm", r.pick.rail2_mm}, {"outcome", r.pick.outcome},
+               {"finger_deg", {RadToDeg(r.pick.finger_rad[0]), RadToDeg(r.pick.finger_rad[1]), RadToDeg(r.pick.finger_rad[2])}}};
+  j["seconds"] = {{"acquisition", r.acquisition_s}, {"reconstruction", r.reconstruction_s}, {"pick", r.pick_s}};
+  j["timing_ms"] = {{"features", r.structure.features_ms}, {"correspondence", r.structure.correspondence_ms},
+                    {"adjustment", r.structure.adjustment_ms}, {"total", r.structure.total_ms}};
+  return j;
+}
+
+}  // namespace idi::workcell

@@ -1,0 +1,126 @@
+// Scan and pick (chapter 8 on the cell, §8.12.3): arm 1 carries the Biclops head to stations around the
+// rotary table, both pan-tilt cameras fixate the table and take images; every view's projection matrix
+// comes from the calibrated chain — robot 1's calibrated kinematics at its encoder readings, its rail
+// position, the calibrated pan-tilt model at the PTU readings and the calibrated intrinsics (§8.3,
+// eqs. 3.10-3.14). The views are reconstructed (EMPL lines, IDI points, bundle correspondence,
+// triangulation, bundle adjustment: procedures/structure.h); the object's points give a top grasp for
+// the Barrett hand (§8.11, shared/grasp), carried into robot 2's base frame through the rail calibration
+// (eq. 3.4); robot 2 approaches, closes the hand, lifts, puts the object down at the place position and
+// opens.
+//
+// Only hal devices and the calibration are used: the procedure runs the same on the twin and the real
+// cell. Whether the hand holds something is judged from the finger encoders (stalled fingers).
+#pragma once
+
+#include <array>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "shared/calib/ptu/ptu_calibration.h"
+#include "shared/calib/rail_calibration.h"
+#include "shared/grasp/grasp_planner.h"
+#include "shared/hal/arm.h"
+#include "shared/hal/camera.h"
+#include "shared/hal/pan_tilt.h"
+#include "shared/kinematics/barrett_hand.h"
+#include "workcell/procedures/structure.h"
+
+namespace idi::workcell {
+
+struct ScanDevices {
+  hal::ArmDevice* arm1 = nullptr;  // carries the Biclops head
+  hal::RailDevice* rail1 = nullptr;
+  hal::ArmDevice* arm2 = nullptr;  // carries the Barrett hand
+  hal::RailDevice* rail2 = nullptr;
+  std::array<hal::PanTiltDevice*, 2> ptu{};         // left, right
+  std::array<hal::CameraDevice*, 2> camera{};       // left, right
+  hal::GripperDevice* hand = nullptr;
+};
+
+// The calibration in use: robot models (chapter 4), psi (chapter 5), the pan-tilt cameras (chapter 6),
+// and the hand's mounting (design drawing: palm centre along the flange's z).
+struct ScanCalibration {
+  calib::ArmModel robot1, robot2;
+  std::array<double, kRobotToRobotParamCount> psi = calib::NominalPsi();
+  std::array<calib::PtuCameraModel, 2> cameras = {calib::PtuCameraModel::Nominal(BiclopsSide::kLeft),
+                                                  calib::PtuCameraModel::Nominal(BiclopsSide::kRight)};
+  Rigid3d flange_from_palm = Translation(0.0, 0.0, 120.0);
+  BarrettHandParams hand;
+};
+
+struct ScanOptions {
+  // The cell's setup (operator's knowledge): where the table top's centre is in R1, its radius.
+  Vec3d table_centre_world = Vec3d(2825, -500, -400);
+  double table_radius_mm = 300;
+  // Views: stations at these azimuths (deg; 0 looks along +x, from robot 1's side), at this distance
+  // from the table centre and elevation; both cameras fixate the point `aim_height_mm` above the table.
+  std::vector<double> azimuths_deg = {-35, 0, 35};
+  double view_distance_mm = 1000;
+  double elevation_deg = 45;
+  double aim_height_mm = 40;
+  double rail1_max_mm = 2500;
+  double rail2_max_mm = 2500;
+  std::vector<double> rail2_candidates_mm = {2400, 2100, 1800, 2500, 1500};
+  // Where objects stand: a cylinder of this radius about the table centre, this tall; the images'
+  // features outside its projection are ignored (floor tiles, the table's rim, clutter), and the model
+  // points inside it (down to `table_tolerance_mm` below the table top) are the object's.
+  double object_region_radius_mm = 220;
+  double object_region_height_mm = 200;
+  double table_tolerance_mm = 5;
+  StructureOptions structure;
+  GraspOptions grasp;
+  bool pick = true;
+  Vec3d place_offset_world = Vec3d(0, 150, 0);  // where to put it down, from where it stood
+  hal::MoveOptions move;
+  std::string out_dir;                  // images, overlays, model.ply/json (empty: nothing written)
+  std::function<bool()> cancelled;      // checked between steps
+  std::function<void(double, const std::string&)> progress;
+  Status Check() const;
+};
+
+struct ScanView {
+  StructureView view;
+  Joints arm1_q{};
+  double rail1_mm = 0;
+  double pan_rad = 0, tilt_rad = 0;
+  int station = 0;
+};
+
+struct PickReport {
+  bool attempted = false;
+  bool grasped = false;  // at least two fingers stalled on something after closing
+  bool lifted = false;   // still stalled after the lift
+  bool placed = false;   // opened at the place position and retreated
+  double rail2_mm = 0;
+  std::array<double, 3> finger_rad{};
+  std::string outcome;
+};
+
+struct ScanReport {
+  std::vector<ScanView> views;
+  StructureResult structure;
+  std::vector<int> object_points;  // indices into structure.model.points
+  GraspPlan grasp;                 // world frame (R1)
+  Rigid3d base2_from_grasp;        // robot 2's base frame at its rail position
+  PickReport pick;
+  double acquisition_s = 0, reconstruction_s = 0, pick_s = 0;
+};
+
+// The scan, and the pick when options.pick. Errors name the step; on cancel or a device error both arms
+// are told to stop.
+Result<ScanReport> ScanAndPick(ScanDevices& devices, const ScanCalibration& calibration, const ScanOptions& options);
+
+// World (R1) from camera for robot 1 at `q`, rail position `rail_mm`, PTU readings.
+Rigid3d ChainWorldFromCamera(const ScanCalibration& calibration, int camera, const Joints& q, double rail_mm,
+                             double pan_rad, double tilt_rad);
+
+// Pan and tilt that put `target_world` on the camera's principal point (Gauss-Newton on the calibrated
+// model). NotFound when it is out of the unit's range or behind the camera.
+Result<std::array<double, 2>> FixatePtu(const ScanCalibration& calibration, int camera, const Joints& q, double rail_mm,
+                                        const Vec3d& target_world, const hal::PanTiltLimits& limits);
+
+// {points: [{id, xyz_mm, views, reproj_rms_px, object}], edges, grasp: {...}, pick: {...}}
+nlohmann::json ScanReportJson(const ScanReport& report);
+
+}  // namespace idi::workcell

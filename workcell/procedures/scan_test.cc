@@ -1,0 +1,122 @@
+// Scan and pick on the cell twin: the views come from the calibration's chain, the model's corners land
+// on the object's, the hand lifts it and puts it down at the place position; bad set-ups and an operator's
+// cancel end the procedure with a clear status and the arms stopped.
+#include "workcell/procedures/scan.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+
+#include "shared/util/units.h"
+#include "workcell/procedures/scan_twin.h"
+
+namespace idi::workcell {
+namespace {
+
+ScanTwinOptions Twin(sim::ObjectKind kind, unsigned scene) {
+  ScanTwinOptions o;
+  o.seed = 3;
+  o.kind = kind;
+  o.scene = scene;
+  o.clutter_objects = 4;
+  return o;
+}
+
+// With a perfect calibration the scan is limited by the images alone: the box's corners within a fraction
+// of a millimetre, and the pick succeeds in the twin's contact physics.
+TEST(ScanTest, BoxIsReconstructedPickedAndPlaced) {
+  ScanTwin twin(Twin(sim::ObjectKind::kBox, 0));
+  ScanDevices d = twin.Devices();
+  ScanOptions o = twin.SetupOptions();
+  if (const char* dir = std::getenv("IDI_SCAN_TEST_OUT")) o.out_dir = dir;  // to look at the views
+  auto r = ScanAndPick(d, twin.TrueCalibration(), o);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->views.size(), 6u);
+  const ScanTruth t = twin.Evaluate(*r, o);
+  EXPECT_GE(t.matched_vertices, 6) << "a box seen from above shows its top four and two or more bottom corners";
+  EXPECT_LT(t.mean_vertex_error_mm, 0.3);
+  EXPECT_LT(t.max_vertex_error_mm, 1.0);
+  EXPECT_EQ(t.spurious_points, 0);
+  EXPECT_TRUE(r->pick.grasped && r->pick.lifted && r->pick.placed) << r->pick.outcome;
+  EXPECT_TRUE(t.held) << t.grasp_reason;
+  EXPECT_TRUE(t.placed);
+  EXPECT_EQ(t.collisions, 0);
+}
+
+// The projection matrices follow the encoders: a view's camera is where the chain puts it for the true
+// model (the twin renders from the same chain), up to the rail's repeatability (0.1 mm sigma along it).
+TEST(ScanTest, ChainMatchesTheTwinsCamera) {
+  ScanTwin twin(Twin(sim::ObjectKind::kTriangularPrism, 1));
+  ScanDevices d = twin.Devices();
+  ScanOptions o = twin.SetupOptions();
+  o.pick = false;
+  o.azimuths_deg = {0};
+  auto r = ScanAndPick(d, twin.TrueCalibration(), o);
+  // One station gives two views; reconstruction may still find the prism.
+  ASSERT_TRUE(r.ok() || r.status().code() == StatusCode::kNotFound) << r.status().ToString();
+  auto world_from_cam = twin.cell().TrueWorldFromCamera(BiclopsSide::kRight);
+  ASSERT_TRUE(world_from_cam.ok());
+  const auto js = d.arm1->ReadJoints();
+  const auto rs = d.rail1->Read();
+  const auto ps = d.ptu[1]->Read();
+  ASSERT_TRUE(js.ok() && rs.ok() && ps.ok());
+  const Rigid3d chain = ChainWorldFromCamera(twin.TrueCalibration(), 1, js->q_rad, rs->position_mm, ps->pan_rad, ps->tilt_rad);
+  EXPECT_LT((chain.translation - world_from_cam->translation).norm(), 0.5);
+  EXPECT_LT((chain.rotation - world_from_cam->rotation).norm(), 1e-9);
+  // Fixating put the table's aim point near the image centre (within the PTU's step of ~0.9 mrad).
+  const Vec3d aim = o.table_centre_world + Vec3d(0, 0, o.aim_height_mm);
+  const auto px = Project(twin.TrueCalibration().cameras[1].Camera(), chain.Inverse() * aim);
+  ASSERT_TRUE(px.has_value());
+  EXPECT_LT((*px - Vec2d(320, 240)).norm(), 15.0);
+}
+
+TEST(ScanTest, BadSetUpsAreRejected) {
+  ScanTwin twin(Twin(sim::ObjectKind::kBox, 2));
+  ScanDevices d = twin.Devices();
+  ScanOptions o = twin.SetupOptions();
+  ScanDevices missing = d;
+  missing.camera[1] = nullptr;
+  auto r = ScanAndPick(missing, twin.TrueCalibration(), o);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(r.status().message().find("cameras"), std::string::npos) << r.status().ToString();
+  o.table_centre_world.x() = std::nan("");
+  EXPECT_EQ(ScanAndPick(d, twin.TrueCalibration(), o).status().code(), StatusCode::kInvalidArgument);
+  o = twin.SetupOptions();
+  o.azimuths_deg.clear();
+  EXPECT_EQ(ScanAndPick(d, twin.TrueCalibration(), o).status().code(), StatusCode::kInvalidArgument);
+  // A table 5 m away: no head pose reaches a view of it; the error names the station.
+  o = twin.SetupOptions();
+  o.table_centre_world += Vec3d(0, -5000, 0);
+  r = ScanAndPick(d, twin.TrueCalibration(), o);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("station 1"), std::string::npos) << r.status().ToString();
+}
+
+// An empty table: the scan finds no object and says so (nothing is picked).
+TEST(ScanTest, EmptyTableIsReportedNotPicked) {
+  ScanTwin twin(Twin(sim::ObjectKind::kBox, 3));
+  twin.cell().ClearObjects();
+  ScanDevices d = twin.Devices();
+  auto r = ScanAndPick(d, twin.TrueCalibration(), twin.SetupOptions());
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kNotFound);
+  EXPECT_NE(r.status().message().find("no object"), std::string::npos) << r.status().ToString();
+}
+
+TEST(ScanTest, CancelStopsBeforeTheNextStep) {
+  ScanTwin twin(Twin(sim::ObjectKind::kBox, 4));
+  ScanDevices d = twin.Devices();
+  ScanOptions o = twin.SetupOptions();
+  int steps = 0;
+  o.progress = [&](double, const std::string&) { ++steps; };
+  o.cancelled = [&] { return steps >= 2; };  // after the first station
+  auto r = ScanAndPick(d, twin.TrueCalibration(), o);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kCancelled);
+  EXPECT_TRUE(twin.cell().objects()[0].world_from_object.translation.isApprox(
+      twin.target_at_start().world_from_object.translation));
+}
+
+}  // namespace
+}  // namespace idi::workcell

@@ -1,0 +1,120 @@
+#include "workcell/procedures/scan_twin.h"
+
+#include <fmt/format.h>
+
+#include <limits>
+
+#include "workcell/procedures/ptu_twin.h"
+
+namespace idi::workcell {
+
+Status ScanTwinOptions::Check() const {
+  if (!(max_offset_mm >= 0 && max_offset_mm <= 150)) {
+    return InvalidArgument(fmt::format("scan twin: the object's offset {} mm is outside [0, 150]", max_offset_mm));
+  }
+  if (clutter_objects < 0 || clutter_objects > 40) return InvalidArgument("scan twin: clutter must be 0 to 40 objects");
+  return Status::Ok();
+}
+
+ScanTwin::ScanTwin(const ScanTwinOptions& options) : options_(options) {
+  const Status ok = options_.Check();
+  IDI_CHECK(ok.ok(), ok.ToString());
+  head_ = SampleHeadTruth(options.seed, calib::PtuTruthOptions{});
+  sim::CellTwinOptions o;
+  o.seed = options.seed;
+  o.keep_truth = options.keep_truth;
+  o.clutter_objects = options.clutter_objects;
+  for (std::size_t i = 0; i < 2; ++i) o.head[i] = {head_[i].ptu, head_[i].Camera()};
+  cell_ = std::make_unique<sim::CellTwin>(o);
+  for (std::size_t i = 0; i < 2; ++i) {
+    SimPtuOptions po;
+    po.name = std::string("sim-ptu-") + (i == 0 ? "left" : "right");
+    ptu_[i] = std::make_unique<SimPanTilt>(po, &cell_->clock());
+    cell_->AttachPanTilt(i == 0 ? BiclopsSide::kLeft : BiclopsSide::kRight, ptu_[i].get());
+  }
+  hand_ = std::make_unique<SimGripper>(SimGripperOptions{}, &cell_->clock());
+  cell_->AttachHand(hand_.get(), [this](const std::array<std::optional<double>, 3>& s) { hand_->SetObject(s); });
+  std::mt19937_64 rng(static_cast<uint64_t>(options.seed) * 2654435761ULL + 977ULL * options.scene +
+                      static_cast<uint64_t>(options.kind) * 7919ULL + 5);
+  target_ = sim::SampleObject(options.kind, o.table.top_centre_world, options.max_offset_mm, rng);
+  cell_->AddObject(target_);
+}
+
+ScanTwin::~ScanTwin() = default;
+
+ScanDevices ScanTwin::Devices() {
+  ScanDevices d;
+  d.arm1 = &cell_->arm(0);
+  d.rail1 = &cell_->rail(0);
+  d.arm2 = &cell_->arm(1);
+  d.rail2 = &cell_->rail(1);
+  d.ptu = {ptu_[0].get(), ptu_[1].get()};
+  d.camera = {&cell_->camera(BiclopsSide::kLeft), &cell_->camera(BiclopsSide::kRight)};
+  d.hand = &cell_->gripper();
+  return d;
+}
+
+ScanOptions ScanTwin::SetupOptions() const {
+  ScanOptions o;
+  o.table_centre_world = cell_->options().table.top_centre_world;
+  o.table_radius_mm = cell_->options().table.radius_mm;
+  o.rail1_max_mm = cell_->options().workcell.rail_length_mm;
+  o.rail2_max_mm = cell_->options().workcell.rail_length_mm;
+  return o;
+}
+
+ScanCalibration ScanTwin::TrueCalibration() const {
+  const sim::WorkcellTwin& w = cell_->workcell();
+  ScanCalibration c;
+  c.robot1 = {w.true_robot(0), w.true_laser(0), w.true_rail(0)};
+  c.robot2 = {w.true_robot(1), w.true_laser(1), w.true_rail(1)};
+  c.psi = w.true_psi();
+  c.cameras = head_;
+  c.flange_from_palm = cell_->options().hand.flange_from_palm;
+  c.hand = cell_->options().hand.fingers;
+  return c;
+}
+
+ScanTruth ScanTwin::Evaluate(const ScanReport& report, const ScanOptions& options) const {
+  ScanTruth t;
+  const sim::ObjectWireframe wire = sim::ObjectCorners(target_.shape);
+  std::vector<Vec3d> corners;
+  for (const Vec3d& v : wire.vertices) corners.push_back(target_.world_from_object * v);
+  t.true_vertices = static_cast<int>(corners.size());
+  const auto& pts = report.structure.model.points;
+  double sum = 0;
+  for (const Vec3d& c : corners) {
+    double best = std::numeric_limits<double>::infinity();
+    for (int i : report.object_points) best = std::min(best, (pts[static_cast<std::size_t>(i)].xyz - c).norm());
+    if (best <= t.match_mm) {
+      ++t.matched_vertices;
+      sum += best;
+      t.max_vertex_error_mm = std::max(t.max_vertex_error_mm, best);
+    }
+  }
+  if (t.matched_vertices > 0) t.mean_vertex_error_mm = sum / t.matched_vertices;
+  t.object_points = static_cast<int>(report.object_points.size());
+  if (!corners.empty()) {
+    for (int i : report.object_points) {
+      double best = std::numeric_limits<double>::infinity();
+      for (const Vec3d& c : corners) best = std::min(best, (pts[static_cast<std::size_t>(i)].xyz - c).norm());
+      if (best > t.match_mm) ++t.spurious_points;
+    }
+  }
+  for (const sim::CellEvent& e : cell_->events()) {
+    if (e.what.rfind("grasped ", 0) == 0) t.held = true;
+  }
+  t.grasp_reason = cell_->last_grasp().reason;
+  t.collisions = cell_->collisions();
+  const std::vector<sim::CellObject> now = cell_->objects();
+  if (!now.empty() && report.pick.attempted) {
+    const Vec3d start = target_.world_from_object.translation;
+    const Vec3d end = now[0].world_from_object.translation;
+    const Vec3d want = start + options.place_offset_world;
+    t.placed = !cell_->held_object() && (end - want).head<2>().norm() < 20.0 && std::abs(end.z() - start.z()) < 1.0;
+    t.lifted = t.held && (t.placed || (end - start).norm() > 20.0);
+  }
+  return t;
+}
+
+}  // namespace idi::workcell

@@ -1,0 +1,73 @@
+// The scan-and-pick cell of the digital twin (shared/sim/cell): the twin of `seed` — the same arms, rail
+// and Biclops head as the calibration twins of that seed (`calibrate robot|rtu|ptu --sim --seed N`), so
+// their calibrations apply here — with the simulated PTUs and Barrett hand of workcell/devices attached,
+// one object on the rotary table and clutter on the floor around it.
+//
+// Ground truth (the object's corners, whether the hand really held and lifted it, where the object ended
+// up) is for tests, studies and reports: Evaluate() scores a ScanReport against it.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "shared/sim/cell/cell_twin.h"
+#include "workcell/devices/barrett/barrett_sim.h"
+#include "workcell/devices/ptu/ptu_sim.h"
+#include "workcell/procedures/scan.h"
+
+namespace idi::workcell {
+
+struct ScanTwinOptions {
+  unsigned seed = 1;            // the cell (arms, rail, head)
+  sim::ObjectKind kind = sim::ObjectKind::kBox;
+  unsigned scene = 0;           // which object of that kind, and its place on the table
+  double max_offset_mm = 60;    // the object's distance from the table centre
+  int clutter_objects = 6;
+  bool keep_truth = false;
+  Status Check() const;
+};
+
+// How a scan did against the truth.
+struct ScanTruth {
+  int true_vertices = 0;        // corners of the object (none for a cylinder)
+  int matched_vertices = 0;     // with a model point within `match_mm`
+  double mean_vertex_error_mm = 0, max_vertex_error_mm = 0;
+  int object_points = 0;        // model points the scan put on the object
+  int spurious_points = 0;      // of those, farther than `match_mm` from every true corner (non-cylinders)
+  bool held = false;            // the hand's grasp held (the twin's contact physics)
+  bool lifted = false;          // the object rose with the hand
+  bool placed = false;          // it ended up on the table at the place position (within 20 mm)
+  int collisions = 0;
+  std::string grasp_reason;
+  double match_mm = 5.0;
+};
+
+class ScanTwin {
+ public:
+  explicit ScanTwin(const ScanTwinOptions& options);
+  ~ScanTwin();
+  ScanTwin(const ScanTwin&) = delete;
+  ScanTwin& operator=(const ScanTwin&) = delete;
+
+  ScanDevices Devices();
+  // The cell's setup as the operator knows it (the table's place and size).
+  ScanOptions SetupOptions() const;
+  sim::CellTwin& cell() { return *cell_; }
+  const sim::CellObject& target_at_start() const { return target_; }
+
+  // Ground truth: the calibration a perfect calibration would give (tests that score the scan alone), and
+  // the scan's result against the truth.
+  ScanCalibration TrueCalibration() const;
+  ScanTruth Evaluate(const ScanReport& report, const ScanOptions& options) const;
+
+ private:
+  ScanTwinOptions options_;
+  std::array<calib::PtuCameraModel, 2> head_;
+  std::unique_ptr<sim::CellTwin> cell_;
+  std::array<std::unique_ptr<SimPanTilt>, 2> ptu_;
+  std::unique_ptr<SimGripper> hand_;
+  sim::CellObject target_;
+  bool lifted_ = false;
+};
+
+}  // namespace idi::workcell
