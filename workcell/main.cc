@@ -7,6 +7,7 @@
 #include "workcell/app/kinematics_command.h"
 #include "workcell/app/reconstruct_command.h"
 #include "workcell/app/replay_command.h"
+#include "workcell/app/scan_command.h"
 #include "workcell/service/service_commands.h"
 
 int main(int argc, char** argv) {
@@ -21,6 +22,7 @@ int main(int argc, char** argv) {
   idi::workcell::AddCalibratePtuCommand(cli);  // under `calibrate`, after robot|rtu
   idi::workcell::AddReconstructCommand(cli);
   idi::workcell::AddReplayCommands(cli);
+  idi::workcell::AddScanCommand(cli);
   idi::workcell::AddServiceCommands(cli, idi::workcell::MakeCell);
   return idi::RunCli(cli, argc, argv);
 }
