@@ -8,6 +8,7 @@
 #include "workcell/app/reconstruct_command.h"
 #include "workcell/app/replay_command.h"
 #include "workcell/app/scan_command.h"
+#include "workcell/app/sim_render_command.h"
 #include "workcell/service/service_commands.h"
 
 int main(int argc, char** argv) {
@@ -23,6 +24,7 @@ int main(int argc, char** argv) {
   idi::workcell::AddReconstructCommand(cli);
   idi::workcell::AddReplayCommands(cli);
   idi::workcell::AddScanCommand(cli);
+  idi::workcell::AddSimRenderCommand(cli);
   idi::workcell::AddServiceCommands(cli, idi::workcell::MakeCell);
   return idi::RunCli(cli, argc, argv);
 }
