@@ -8,6 +8,8 @@
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <sstream>
+#include <yaml-cpp/yaml.h>
 
 #include "shared/hal/clock.h"
 #include "shared/sim/workcell/workcell_twin.h"
@@ -15,6 +17,7 @@
 #include "shared/util/units.h"
 #include "workcell/app/calibrate_command.h"
 #include "workcell/app/calibrate_ptu_command.h"
+#include "workcell/app/scan_command.h"
 #include "workcell/devices/barrett/barrett_driver.h"
 #include "workcell/devices/ptu/ptu_driver.h"
 #include "workcell/devices/staubli/staubli_driver.h"
@@ -218,11 +221,167 @@ JobSpec PtuJob(unsigned seed) {
   return j;
 }
 
+// The calibration in use, for a scan: all four items, else FailedPrecondition naming what is missing.
+Result<ScanCalibration> CurrentScanCalibration(JobContext& ctx, const std::string& job) {
+  CalibrationFiles f;
+  for (auto [item, path] : {std::pair{"robot1", &f.robot1}, std::pair{"robot2", &f.robot2}, std::pair{"rail", &f.rail},
+                            std::pair{"ptu", &f.ptu}}) {
+    auto p = ctx.calibration->CurrentItemPath(item);
+    if (!p.ok()) {
+      return FailedPrecondition(fmt::format("{}: the calibration in use has no '{}'; run calibrate-{} first", job, item, item));
+    }
+    *path = *p;
+  }
+  return LoadScanCalibration(f);
+}
+
+Status CheckObject(const nlohmann::json& v, const std::string& job) {
+  if (!v.is_string()) return InvalidArgument(job + ": 'object' must be box, prism, bracket or cylinder");
+  const std::string s = v.get<std::string>();
+  if (s != "box" && s != "prism" && s != "bracket" && s != "cylinder") {
+    return InvalidArgument(job + ": 'object' must be box, prism, bracket or cylinder, got '" + s + "'");
+  }
+  return Status::Ok();
+}
+
+JobSpec ScanJob(unsigned seed) {
+  JobSpec j;
+  j.name = "scan";
+  j.description = "scan the object on the table, plan the grasp, pick and place it (chapter 8) in the twin; args: "
+                  "object (box|prism|bracket|cylinder), scene, pick (bool)";
+  j.validate = [](const nlohmann::json& args) {
+    IDI_RETURN_IF_ERROR(CheckOnlyKeys(args, {"object", "scene", "pick"}, "scan"));
+    if (args.contains("object")) IDI_RETURN_IF_ERROR(CheckObject(args.at("object"), "scan"));
+    if (args.contains("scene") && (!args.at("scene").is_number_integer() || args.at("scene").get<int64_t>() < 0)) {
+      return InvalidArgument("scan: 'scene' must be a non-negative integer");
+    }
+    if (args.contains("pick") && !args.at("pick").is_boolean()) return InvalidArgument("scan: 'pick' must be true or false");
+    return Status::Ok();
+  };
+  j.run = [seed](JobContext& ctx, const nlohmann::json& args) -> Result<nlohmann::json> {
+    IDI_ASSIGN_OR_RETURN(const ScanCalibration cal, CurrentScanCalibration(ctx, "scan"));
+    SimScanOptions o;
+    o.seed = seed;
+    o.object = args.value("object", std::string("box"));
+    o.scene = static_cast<unsigned>(args.value("scene", 0));
+    o.pick = args.value("pick", true);
+    o.out = ctx.run_dir;
+    o.cancelled = [&ctx] { return ctx.cancelled(); };
+    o.progress = ctx.progress;
+    return RunSimScan(o, cal);
+  };
+  return j;
+}
+
+nlohmann::json YamlToJson(const YAML::Node& n) {
+  if (n.IsMap()) {
+    nlohmann::json out = nlohmann::json::object();
+    for (const auto& kv : n) out[kv.first.as<std::string>()] = YamlToJson(kv.second);
+    return out;
+  }
+  if (n.IsSequence()) {
+    nlohmann::json out = nlohmann::json::array();
+    for (const auto& e : n) out.push_back(YamlToJson(e));
+    return out;
+  }
+  if (!n.IsScalar()) return nullptr;
+  double d = 0;
+  if (YAML::convert<double>::decode(n, d)) return d;
+  return n.as<std::string>();
+}
+
+// The statistics block of a calibration file (its accuracy), as JSON.
+nlohmann::json CalibrationStatistics(const std::string& path) {
+  try {
+    const YAML::Node root = YAML::LoadFile(path);
+    return root["statistics"] ? YamlToJson(root["statistics"]) : nlohmann::json::object();
+  } catch (const YAML::Exception& e) {
+    return {{"error", path + ": " + e.what()}};
+  }
+}
+
+JobSpec DayJob(unsigned seed) {
+  JobSpec j;
+  j.name = "day";
+  j.description = "the simulated day's work once calibrated: scan and pick each object in turn; args: objects "
+                  "(comma-separated, default box,prism,bracket)";
+  auto parse = [](const nlohmann::json& args) -> Result<std::vector<std::string>> {
+    std::vector<std::string> out;
+    if (!args.contains("objects")) return std::vector<std::string>{"box", "prism", "bracket"};
+    const nlohmann::json& v = args.at("objects");
+    if (v.is_array()) {
+      for (const auto& e : v) {
+        IDI_RETURN_IF_ERROR(CheckObject(e, "day"));
+        out.push_back(e.get<std::string>());
+      }
+    } else if (v.is_string()) {
+      std::stringstream ss(v.get<std::string>());
+      for (std::string item; std::getline(ss, item, ',');) {
+        IDI_RETURN_IF_ERROR(CheckObject(item, "day"));
+        out.push_back(item);
+      }
+    } else {
+      return InvalidArgument("day: 'objects' must be a list or a comma-separated string");
+    }
+    if (out.empty() || out.size() > 50) return InvalidArgument("day: 1 to 50 objects");
+    return out;
+  };
+  j.validate = [parse](const nlohmann::json& args) {
+    IDI_RETURN_IF_ERROR(CheckOnlyKeys(args, {"objects"}, "day"));
+    return parse(args).status();
+  };
+  j.run = [seed, parse](JobContext& ctx, const nlohmann::json& args) -> Result<nlohmann::json> {
+    IDI_ASSIGN_OR_RETURN(const std::vector<std::string> objects, parse(args));
+    IDI_ASSIGN_OR_RETURN(const ScanCalibration cal, CurrentScanCalibration(ctx, "day"));
+    nlohmann::json report;
+    IDI_ASSIGN_OR_RETURN(const auto version, ctx.calibration->Current());
+    report["calibration"] = {{"version", version ? version->number : 0}};
+    for (const char* item : {"robot1", "robot2", "rail", "ptu"}) {
+      auto p = ctx.calibration->CurrentItemPath(item);
+      if (p.ok()) report["calibration"][item] = {{"file", *p}, {"statistics", CalibrationStatistics(*p)}};
+    }
+    report["scans"] = nlohmann::json::array();
+    int picked = 0;
+    for (std::size_t i = 0; i < objects.size(); ++i) {
+      if (ctx.cancelled()) return Cancelled("day: cancelled by the operator after " + std::to_string(i) + " objects");
+      SimScanOptions o;
+      o.seed = seed;
+      o.object = objects[i];
+      o.scene = static_cast<unsigned>(i);
+      o.out = (fs::path(ctx.run_dir) / fmt::format("{:02d}-{}", i + 1, objects[i])).string();
+      o.cancelled = [&ctx] { return ctx.cancelled(); };
+      o.progress = [&ctx, i, n = objects.size(), name = objects[i]](double f, const std::string& what) {
+        ctx.progress((static_cast<double>(i) + f) / static_cast<double>(n), name + ": " + what);
+      };
+      auto r = RunSimScan(o, cal);
+      nlohmann::json row = {{"object", objects[i]}, {"folder", o.out}};
+      if (!r.ok()) {
+        if (r.status().code() == StatusCode::kCancelled) return r.status();
+        row["error"] = r.status().ToString();
+      } else {
+        const auto& t = r->at("truth");
+        row.update({{"corners_found", t.at("matched_vertices")}, {"corners", t.at("true_vertices")},
+                    {"corner_error_mean_mm", t.at("mean_vertex_error_mm")},
+                    {"corner_error_max_mm", t.at("max_vertex_error_mm")}, {"pick", r->at("pick").at("outcome")},
+                    {"held", t.at("held")}, {"placed", t.at("placed")}, {"collisions", t.at("collisions")}});
+        if (t.at("held").get<bool>() && t.at("placed").get<bool>()) ++picked;
+      }
+      spdlog::info("day: {} {}/{}: {}", objects[i], i + 1, objects.size(), row.dump());
+      report["scans"].push_back(row);
+    }
+    report["picked"] = picked;
+    report["objects"] = objects.size();
+    return report;
+  };
+  return j;
+}
+
 Result<Cell> MakeSimCell(const WorkcellConfig& config) {
   Cell cell;
   cell.devices = std::make_unique<SimDeviceSet>(config.sim_seed);
   cell.jobs = {RobotJob(1, config.sim_seed), RobotJob(2, config.sim_seed), RailJob(config.sim_seed),
-               PtuJob(config.sim_seed)};
+               PtuJob(config.sim_seed), ScanJob(config.sim_seed), DayJob(config.sim_seed)};
+  if (!config.sim_day.empty()) cell.startup_jobs.push_back({"day", {{"objects", config.sim_day}}});
   cell.calibration_jobs = {"calibrate-robot1", "calibrate-robot2", "calibrate-rail", "calibrate-ptu"};
   cell.calibration_items = {"robot1", "robot2", "rail", "ptu"};
   return cell;

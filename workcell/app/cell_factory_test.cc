@@ -56,6 +56,21 @@ WorkcellConfig SimConfig(const fs::path& state) {
   return c;
 }
 
+// Scans need the whole calibration; their arguments are checked before queuing.
+TEST_F(CellTest, ScanAndDayJobsValidateAndNeedTheCalibration) {
+  auto cell = MakeCell(SimConfig(dir_));
+  ASSERT_TRUE(cell.ok()) << cell.status().ToString();
+  CalibrationStore store((dir_ / "calibration").string());
+  ASSERT_TRUE(store.Open().ok());
+  EXPECT_EQ(RunJob(*cell, store, "scan", {{"object", "teapot"}}).status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(RunJob(*cell, store, "scan", {{"scene", -1}}).status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(RunJob(*cell, store, "scan", {{"colour", "red"}}).status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(RunJob(*cell, store, "day", {{"objects", "box,,prism"}}).status().code(), StatusCode::kInvalidArgument);
+  const auto r = RunJob(*cell, store, "scan", {{"object", "box"}});
+  ASSERT_EQ(r.status().code(), StatusCode::kFailedPrecondition);
+  EXPECT_NE(r.status().message().find("run calibrate-robot1 first"), std::string::npos) << r.status().ToString();
+}
+
 TEST_F(CellTest, SimCellConnectsHomesAndReportsHealth) {
   auto cell = MakeCell(SimConfig(dir_));
   ASSERT_TRUE(cell.ok()) << cell.status().ToString();

@@ -174,6 +174,17 @@ idi::Status WorkcellService::StartUp() {
       }
     }
   }
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!startup_jobs_queued_) {
+    startup_jobs_queued_ = true;
+    for (const auto& [job, args] : options_.startup_jobs) {
+      if (jobs_.count(job) == 0) {
+        spdlog::error("service: start-up job '{}' is not served by this cell; skipped", job);
+        continue;
+      }
+      queue_.push_back({next_job_id_++, job, args});
+    }
+  }
   return idi::Status::Ok();
 }
 
@@ -193,9 +204,21 @@ idi::Status WorkcellService::Run() {
   NotifyReady();
   worker_ = std::thread([this] { WorkerLoop(); });
   std::unique_lock<std::mutex> lock(mu_);
+  idi::Status ended = idi::Status::Ok();
   while (!shutdown_) {
     cv_.wait_for(lock, tick);
     NotifyWatchdog();
+    if (options_.exit_when_idle && queue_.empty() && current_job_.empty() &&
+        (state_ == ServiceState::kIdle || state_ == ServiceState::kFault)) {
+      if (state_ == ServiceState::kFault) {
+        ended = idi::DeviceError("service: ended in the fault state: " + state_reason_);
+      } else if (jobs_failed_ > 0) {
+        ended = idi::Internal("service: " + std::to_string(jobs_failed_) + " job(s) failed; first: " + first_failure_);
+      }
+      spdlog::info("service: the queue has run dry; exiting (exit_when_idle)");
+      shutdown_ = true;
+      break;
+    }
     if (state_ == ServiceState::kFault && reset_requested_) {
       reset_requested_ = false;
       lock.unlock();
@@ -220,7 +243,7 @@ idi::Status WorkcellService::Run() {
   cv_.notify_all();
   if (worker_.joinable()) worker_.join();
   (void)devices_->StopAll();
-  return idi::Status::Ok();
+  return ended;
 }
 
 void WorkcellService::WorkerLoop() {
@@ -284,6 +307,7 @@ void WorkcellService::WorkerLoop() {
     } else {
       if (!error.empty()) {
         last_error_ = job.name + ": " + error;
+        if (jobs_failed_++ == 0) first_failure_ = last_error_;
         spdlog::error("service: job {} '{}' failed: {}", job.id, job.name, error);
       } else {
         spdlog::info("service: job {} '{}' done, results in {}", job.id, job.name, ctx.run_dir);

@@ -64,6 +64,10 @@ struct ServiceOptions {
   bool recalibrate_when_stale = true;
   std::vector<std::string> calibration_jobs;  // queued (in order) when the calibration is missing/stale
   std::vector<std::string> required_calibration_items;  // e.g. robot1, robot2, rail, ptu-left, ptu-right
+  // Queued once at the first start, after any calibration jobs (e.g. the simulated day's scans).
+  std::vector<std::pair<std::string, nlohmann::json>> startup_jobs;
+  // Run() returns when the queue has run dry (demonstrations, CI): an error when a job failed.
+  bool exit_when_idle = false;
 };
 
 class WorkcellService {
@@ -110,6 +114,9 @@ class WorkcellService {
   nlohmann::json last_result_;
   std::string last_error_;
   bool reset_requested_ = false;
+  bool startup_jobs_queued_ = false;
+  int jobs_failed_ = 0;
+  std::string first_failure_;
   std::atomic<bool> cancel_{false};
   std::atomic<bool> shutdown_{false};
   std::thread worker_;

@@ -33,6 +33,8 @@ Status RunService(const RunOptions& o, const CellFactory& make_cell) {
   so.recalibrate_when_stale = config.recalibrate_when_stale;
   so.calibration_jobs = cell.calibration_jobs;
   so.required_calibration_items = cell.calibration_items;
+  so.startup_jobs = cell.startup_jobs;
+  so.exit_when_idle = config.exit_when_idle;
   WorkcellService service(so, cell.devices.get(), std::move(cell.jobs));
   ControlServerOptions co;
   co.path = config.control_socket;

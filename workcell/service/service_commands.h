@@ -17,6 +17,7 @@ struct Cell {
   std::vector<JobSpec> jobs;
   std::vector<std::string> calibration_jobs;      // run (in order) when the calibration is missing/stale
   std::vector<std::string> calibration_items;     // what a complete calibration holds
+  std::vector<std::pair<std::string, nlohmann::json>> startup_jobs;  // queued after the calibration check
 };
 using CellFactory = std::function<Result<Cell>(const WorkcellConfig& config)>;
 

@@ -111,6 +111,36 @@ TEST(ServiceTest, RunsJobsAndWritesReports) {
   fs::remove_all(opt.state_dir);
 }
 
+// The simulated day's form: start-up jobs run once, then the service returns by itself; a failed job
+// makes Run() return an error naming it.
+TEST(ServiceTest, StartupJobsRunThenExitWhenIdle) {
+  FakeDevices dev;
+  std::atomic<int> runs{0};
+  ServiceOptions opt;
+  opt.state_dir = TempState("day");
+  opt.startup_jobs = {{"count", nlohmann::json::object()}, {"count", nlohmann::json::object()}};
+  opt.exit_when_idle = true;
+  WorkcellService svc(opt, &dev, {CountingJob(&runs)});
+  const Status st = svc.Run();  // returns without a shutdown request
+  EXPECT_TRUE(st.ok()) << st.ToString();
+  EXPECT_EQ(runs, 2);
+  EXPECT_GE(dev.stops, 1);
+  fs::remove_all(opt.state_dir);
+
+  ServiceOptions bad;
+  bad.state_dir = TempState("day_fail");
+  bad.startup_jobs = {{"faulty", nlohmann::json::object()}};
+  bad.exit_when_idle = true;
+  JobSpec failing;
+  failing.name = "faulty";
+  failing.run = [](JobContext&, const nlohmann::json&) -> Result<nlohmann::json> { return NotFound("no object on the table"); };
+  WorkcellService svc2(bad, &dev, {failing});
+  const Status st2 = svc2.Run();
+  ASSERT_FALSE(st2.ok());
+  EXPECT_NE(st2.message().find("no object on the table"), std::string::npos) << st2.ToString();
+  fs::remove_all(bad.state_dir);
+}
+
 TEST(ServiceTest, StopCancelsTheRunningJobAndStopsDevices) {
   FakeDevices dev;
   std::atomic<bool> started{false};

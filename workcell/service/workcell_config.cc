@@ -58,13 +58,15 @@ Result<WorkcellConfig> ParseWorkcellConfig(const std::string& text, const std::s
     return ParseError(where + ":" + std::to_string(e.mark.line + 1) + ": malformed YAML: " + e.msg);
   }
   if (!root || root.IsNull()) return InvalidArgument(where + ": empty configuration");
-  IDI_RETURN_IF_ERROR(OnlyKeys(root, {"backend", "state_dir", "control", "calibration", "sim", "hardware"}, where, ""));
+  IDI_RETURN_IF_ERROR(
+      OnlyKeys(root, {"backend", "state_dir", "control", "calibration", "sim", "hardware", "exit_when_idle"}, where, ""));
   WorkcellConfig c;
   IDI_RETURN_IF_ERROR(Read(root, "backend", where, "", &c.backend));
   if (c.backend != "sim" && c.backend != "hardware") {
     return InvalidArgument(At(where, root["backend"]) + ": backend '" + c.backend + "' (expected sim or hardware)");
   }
   IDI_RETURN_IF_ERROR(Read(root, "state_dir", where, "", &c.state_dir));
+  IDI_RETURN_IF_ERROR(Read(root, "exit_when_idle", where, "", &c.exit_when_idle));
   if (root["control"]) {
     IDI_RETURN_IF_ERROR(OnlyKeys(root["control"], {"socket", "group"}, where, "control"));
     IDI_RETURN_IF_ERROR(Read(root["control"], "socket", where, "control", &c.control_socket));
@@ -80,8 +82,18 @@ Result<WorkcellConfig> ParseWorkcellConfig(const std::string& text, const std::s
     }
   }
   if (root["sim"]) {
-    IDI_RETURN_IF_ERROR(OnlyKeys(root["sim"], {"seed"}, where, "sim"));
+    IDI_RETURN_IF_ERROR(OnlyKeys(root["sim"], {"seed", "day"}, where, "sim"));
     IDI_RETURN_IF_ERROR(Read(root["sim"], "seed", where, "sim", &c.sim_seed));
+    if (const YAML::Node day = root["sim"]["day"]) {
+      if (!day.IsSequence()) return InvalidArgument(At(where, day) + ": 'sim.day' must be a list of objects");
+      for (const YAML::Node& n : day) {
+        const std::string name = n.IsScalar() ? n.as<std::string>() : std::string();
+        if (name != "box" && name != "prism" && name != "bracket" && name != "cylinder") {
+          return InvalidArgument(At(where, n) + ": 'sim.day' entries are box, prism, bracket or cylinder");
+        }
+        c.sim_day.push_back(name);
+      }
+    }
   }
   if (root["hardware"]) {
     const YAML::Node hw = root["hardware"];

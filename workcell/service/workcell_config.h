@@ -4,7 +4,8 @@
 //   state_dir: /var/lib/idi-workcell  # runs, recordings, the calibration in use
 //   control: {socket: /run/idi-workcell/control.sock, group: idi}
 //   calibration: {max_age_days: 30, recalibrate_when_stale: true}
-//   sim: {seed: 1}
+//   sim: {seed: 1, day: [box, prism, bracket]}   # day: objects to scan and pick once calibrated
+//   exit_when_idle: false             # true: return when the queue has run dry (the simulated day, CI)
 //   hardware:
 //     arms:    [{name: arm1, host: 192.168.10.11, port: 5100}, {name: arm2, host: 192.168.10.12, port: 5100}]
 //     ptus:    [{name: left, device: /dev/ttyUSB0, baud: 9600}, {name: right, device: /dev/ttyUSB1, baud: 9600}]
@@ -45,6 +46,8 @@ struct WorkcellConfig {
   double calibration_max_age_days = 30;
   bool recalibrate_when_stale = true;
   unsigned sim_seed = 1;
+  std::vector<std::string> sim_day;  // objects the sim cell scans and picks at start (the `day` job)
+  bool exit_when_idle = false;
   std::vector<ArmEndpoint> arms;
   std::vector<SerialEndpoint> ptus;
   SerialEndpoint hand;

@@ -33,6 +33,14 @@ TEST(WorkcellConfigTest, DefaultsToTheSimulation) {
   EXPECT_EQ(c->backend, "sim");
 }
 
+TEST(WorkcellConfigTest, ReadsTheSimulatedDay) {
+  const auto c = ParseWorkcellConfig("backend: sim\nsim: {seed: 4, day: [box, bracket]}\nexit_when_idle: true\n", "d.yaml");
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_EQ(c->sim_seed, 4u);
+  EXPECT_EQ(c->sim_day, (std::vector<std::string>{"box", "bracket"}));
+  EXPECT_TRUE(c->exit_when_idle);
+}
+
 TEST(WorkcellConfigTest, RejectsBadConfigsNamingFileLineAndKey) {
   struct Case {
     const char* text;
@@ -47,6 +55,9 @@ TEST(WorkcellConfigTest, RejectsBadConfigsNamingFileLineAndKey) {
            {"backend: sim\nhardware: {arms: [{name: a, host: h, port: 99999}]}\n", "port in 1..65535"},
            {"backend: [", "malformed YAML"},
            {"", "empty configuration"},
+           {"backend: sim\nsim: {day: [box, teapot]}\n", "'sim.day' entries are box, prism, bracket or cylinder"},
+           {"backend: sim\nsim: {day: box}\n", "'sim.day' must be a list"},
+           {"backend: sim\nexit_when_idle: maybe\n", "exit_when_idle"},
        }) {
     const auto c = ParseWorkcellConfig(k.text, "w.yaml");
     ASSERT_FALSE(c.ok()) << k.text;

@@ -1,0 +1,158 @@
+// Issue 7's acceptance study: scan and pick in the cell twin, N scenes each of a box, a triangular prism,
+// an L-bracket and a cylinder (clutter on the floor), with the calibration from files (what the cell
+// would use; `idi-workcell scan --sim --out DIR` leaves one in DIR/calibration) or, with --oracle, the
+// twin's true parameters (the scan's own error, calibration error excluded).
+//
+// Per scene: views (6 by default, --stations 4 for 8), reconstruction, grasp, pick; scored against the
+// twin's truth: corners found within 5 mm, their error, spurious object points, grasp held / object
+// placed, collisions, and the time of features + correspondence + triangulation + bundle adjustment.
+//
+// Usage: scan_study [--calibration DIR | --oracle] [--scenes 10] [--seed 1] [--stations 3] [--json FILE]
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "workcell/app/scan_command.h"
+#include "workcell/procedures/scan_twin.h"
+
+namespace idi {
+namespace {
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+int Main(int argc, char** argv) {
+  std::string cal_dir, json_out;
+  bool oracle = false;
+  int scenes = 10, stations = 3;
+  unsigned seed = 1;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&]() -> std::string {
+      if (i + 1 >= argc) {
+        fmt::print(stderr, "{} needs a value\n", a);
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--calibration") cal_dir = next();
+    else if (a == "--oracle") oracle = true;
+    else if (a == "--scenes") scenes = std::atoi(next().c_str());
+    else if (a == "--seed") seed = static_cast<unsigned>(std::atoi(next().c_str()));
+    else if (a == "--stations") stations = std::atoi(next().c_str());
+    else if (a == "--json") json_out = next();
+    else {
+      fmt::print(stderr, "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--seed S] [--stations K] [--json FILE]\n");
+      return 2;
+    }
+  }
+  if (scenes < 1 || stations < 1 || stations > 6 || (!oracle && cal_dir.empty())) {
+    fmt::print(stderr, "scan_study: give --calibration DIR or --oracle; scenes >= 1; stations 1..6\n");
+    return 2;
+  }
+  spdlog::set_level(spdlog::level::warn);
+  workcell::ScanCalibration cal;
+  if (!oracle) {
+    auto files = workcell::EnsureSimCalibration(cal_dir, seed);
+    if (!files.ok()) {
+      fmt::print(stderr, "{}\n", files.status().ToString());
+      return 1;
+    }
+    auto c = workcell::LoadScanCalibration(*files);
+    if (!c.ok()) {
+      fmt::print(stderr, "{}\n", c.status().ToString());
+      return 1;
+    }
+    cal = *c;
+  }
+  const std::vector<std::pair<const char*, sim::ObjectKind>> kinds = {{"box", sim::ObjectKind::kBox},
+                                                                      {"prism", sim::ObjectKind::kTriangularPrism},
+                                                                      {"bracket", sim::ObjectKind::kLBracket},
+                                                                      {"cylinder", sim::ObjectKind::kCylinder}};
+  nlohmann::json all = nlohmann::json::array();
+  int total = 0, picked = 0, failed_scans = 0;
+  std::vector<double> errors_all, ms_all;
+  double max_err_all = 0;
+  fmt::print("{:9} {:>6} {:>8} {:>9} {:>9} {:>9} {:>7} {:>7} {:>9}\n", "object", "scenes", "corners", "mean mm",
+             "max mm", "spurious", "held", "placed", "ms (med)");
+  for (const auto& [name, kind] : kinds) {
+    int found = 0, possible = 0, spurious = 0, objpts = 0, held = 0, placed = 0;
+    double sum = 0, worst = 0;
+    int matched = 0;
+    std::vector<double> ms;
+    for (int s = 0; s < scenes; ++s) {
+      workcell::ScanTwinOptions to;
+      to.seed = seed;
+      to.kind = kind;
+      to.scene = static_cast<unsigned>(s);
+      workcell::ScanTwin twin(to);
+      if (oracle) cal = twin.TrueCalibration();
+      workcell::ScanDevices d = twin.Devices();
+      workcell::ScanOptions o = twin.SetupOptions();
+      if (stations == 4) o.azimuths_deg = {-45, -15, 15, 45};
+      else if (stations != 3) {
+        o.azimuths_deg.clear();
+        for (int k = 0; k < stations; ++k) o.azimuths_deg.push_back(stations == 1 ? 0.0 : -45.0 + 90.0 * k / (stations - 1));
+      }
+      ++total;
+      auto r = workcell::ScanAndPick(d, cal, o);
+      nlohmann::json row = {{"object", name}, {"scene", s}};
+      if (!r.ok()) {
+        ++failed_scans;
+        row["error"] = r.status().ToString();
+        fmt::print(stderr, "  {} scene {}: {}\n", name, s, r.status().ToString());
+        all.push_back(row);
+        continue;
+      }
+      const workcell::ScanTruth t = twin.Evaluate(*r, o);
+      found += t.matched_vertices;
+      possible += t.true_vertices;
+      spurious += t.spurious_points;
+      objpts += t.object_points;
+      if (t.matched_vertices > 0) {
+        sum += t.mean_vertex_error_mm * t.matched_vertices;
+        matched += t.matched_vertices;
+        worst = std::max(worst, t.max_vertex_error_mm);
+      }
+      held += t.held ? 1 : 0;
+      const bool ok_pick = t.held && t.placed && t.collisions == 0;
+      placed += ok_pick ? 1 : 0;
+      picked += ok_pick ? 1 : 0;
+      ms.push_back(r->structure.total_ms);
+      ms_all.push_back(r->structure.total_ms);
+      row.update({{"views", r->views.size()}, {"matched", t.matched_vertices}, {"true_vertices", t.true_vertices},
+                  {"mean_mm", t.mean_vertex_error_mm}, {"max_mm", t.max_vertex_error_mm}, {"spurious", t.spurious_points},
+                  {"object_points", t.object_points}, {"held", t.held}, {"placed", t.placed}, {"collisions", t.collisions},
+                  {"grasp", t.grasp_reason}, {"outcome", r->pick.outcome}, {"structure_ms", r->structure.total_ms}});
+      all.push_back(row);
+    }
+    if (matched > 0) {
+      errors_all.push_back(sum / matched);
+      max_err_all = std::max(max_err_all, worst);
+    }
+    fmt::print("{:9} {:>6} {:>4}/{:<3} {:>9.3f} {:>9.3f} {:>5}/{:<3} {:>4}/{:<2} {:>4}/{:<2} {:>9.1f}\n", name, scenes, found,
+               possible, matched > 0 ? sum / matched : 0.0, worst, spurious, objpts, held, scenes, placed, scenes, Median(ms));
+  }
+  fmt::print("all: {} scenes, {} scans failed, picks succeeded {}/{} ({:.1f} %), worst corner error {:.3f} mm, "
+             "structure time median {:.1f} ms\n",
+             total, failed_scans, picked, total, 100.0 * picked / total, max_err_all, Median(ms_all));
+  if (!json_out.empty()) {
+    std::ofstream(json_out) << nlohmann::json{{"scenes", all}, {"oracle", oracle}, {"stations", stations}}.dump(2) << "\n";
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace idi
+
+int main(int argc, char** argv) { return idi::Main(argc, argv); }
