@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <thread>
 #include <vector>
 
 #include "shared/sim/render/raster_internal.h"
@@ -517,10 +518,12 @@ class PixelIntegrator {
 
 }  // namespace
 
-void RasterizeRadiance(const Prepared& prep, bool color, cv::Mat* out_image) {
+namespace {
+
+// Tile rows first, first + stride, ... of the raster (every pixel depends only on the prepared scene,
+// so rows can be integrated by several threads at once with the same result).
+void RasterizeTileRows(const Prepared& prep, bool color, int first, int stride, cv::Mat& out) {
   const PixelGrid& g = *prep.grid;
-  out_image->create(g.rows, g.cols, color ? CV_32FC3 : CV_32FC1);
-  cv::Mat& out = *out_image;
   PixelIntegrator integrator(prep, false);
   auto store = [&](int i, int j, const Vec3d& rgb) {
     if (color) {
@@ -530,7 +533,7 @@ void RasterizeRadiance(const Prepared& prep, bool color, cv::Mat* out_image) {
       out.at<float>(j, i) = static_cast<float>(Luma(rgb));
     }
   };
-  for (int ty = 0; ty < prep.tiles_y; ++ty) {
+  for (int ty = first; ty < prep.tiles_y; ty += stride) {
     for (int tx = 0; tx < prep.tiles_x; ++tx) {
       const std::size_t t = static_cast<std::size_t>(ty * prep.tiles_x + tx);
       const int* cand = prep.tile_items.data() + prep.tile_start[t];
@@ -573,6 +576,26 @@ void RasterizeRadiance(const Prepared& prep, bool color, cv::Mat* out_image) {
       }
     }
   }
+}
+
+}  // namespace
+
+void RasterizeRadiance(const Prepared& prep, bool color, int threads, cv::Mat* out_image) {
+  const PixelGrid& g = *prep.grid;
+  out_image->create(g.rows, g.cols, color ? CV_32FC3 : CV_32FC1);
+  const int n = std::clamp(threads, 1, std::max(1, prep.tiles_y));
+  if (n == 1) {
+    RasterizeTileRows(prep, color, 0, 1, *out_image);
+    return;
+  }
+  // Interleaved tile rows balance the work (the costly rows - textured floor, many edges - cluster).
+  std::vector<std::thread> helpers;
+  helpers.reserve(static_cast<std::size_t>(n - 1));
+  for (int k = 1; k < n; ++k) {
+    helpers.emplace_back([&prep, color, k, n, out_image] { RasterizeTileRows(prep, color, k, n, *out_image); });
+  }
+  RasterizeTileRows(prep, color, 0, n, *out_image);
+  for (std::thread& h : helpers) h.join();
 }
 
 bool RasterizeSpots(const Prepared& prep, bool color, cv::Mat* out_image) {

@@ -209,8 +209,9 @@ Vec3d SpotEmission(const Prepared& prep, const Surface& surface, double x, doubl
 int FrontPieceAt(const Prepared& prep, const Vec2d& ideal);
 
 // Area-integrated radiance image of the raster (margin included): CV_32FC3 (RGB order) or CV_32FC1
-// (luma) when !color. `out` is (re)allocated only when its size or type differs.
-void RasterizeRadiance(const Prepared& prep, bool color, cv::Mat* out);
+// (luma) when !color, computed by `threads` threads (the same image for any number). `out` is
+// (re)allocated only when its size or type differs.
+void RasterizeRadiance(const Prepared& prep, bool color, int threads, cv::Mat* out);
 // The spot layer over the same raster (zero away from spots); false when there is no spot to draw.
 bool RasterizeSpots(const Prepared& prep, bool color, cv::Mat* out);
 

@@ -2,7 +2,9 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <thread>
 
 #include "shared/sim/render/raster_internal.h"
 
@@ -24,6 +26,7 @@ Status RenderOptions::Check() const {
   if (!std::isfinite(truth_min_contrast_dn) || truth_min_contrast_dn < 0) {
     return InvalidArgument("render truth_min_contrast_dn must be >= 0");
   }
+  if (threads < 0 || threads > 64) return InvalidArgument("render threads must be in 0..64, got " + std::to_string(threads));
   return sensor.Check();
 }
 
@@ -98,7 +101,9 @@ Result<cv::Mat> RenderIrradiance(const Scene& scene, const CameraModel& camera, 
   IDI_ASSIGN_OR_RETURN(const internal::Prepared prep, internal::Prepare(scene, camera, cam_from_world, options, margin));
   // The raster buffer is reused between frames of one thread (a fresh one costs page faults).
   thread_local cv::Mat radiance;
-  internal::RasterizeRadiance(prep, options.color, &radiance);
+  const int threads =
+      options.threads > 0 ? options.threads : std::clamp(static_cast<int>(std::thread::hardware_concurrency()), 1, 4);
+  internal::RasterizeRadiance(prep, options.color, threads, &radiance);
   cv::Mat spots;
   const bool have_spots = internal::RasterizeSpots(prep, options.color, &spots);
   if (truth != nullptr) internal::ComputeGroundTruth(prep, options, truth);

@@ -51,6 +51,8 @@ struct RenderOptions {
   double near_clip = 1e-3;     // scene length units; geometry closer to the camera plane is cut off
   // Ground truth: an edge counts as visible where its two sides differ by at least this much.
   double truth_min_contrast_dn = 1.0;
+  // Threads integrating the pixels (the image is the same for any number); 0 = one per core, at most 4.
+  int threads = 0;
   Status Check() const;
 };
 

@@ -38,10 +38,9 @@ struct NoiseTables {
   }
 };
 
-const NoiseTables& Tables() {
-  static const NoiseTables tables;
-  return tables;
-}
+// Built at load time (no initialisation guard in the per-pixel path).
+const NoiseTables kNoiseTables;
+inline const NoiseTables& Tables() { return kNoiseTables; }
 
 // Hash of a lattice point to [-1, 1] (period 256 cells).
 inline double LatticeValue(int64_t i, int64_t j, const NoiseTables& t) {
