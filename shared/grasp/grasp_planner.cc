@@ -79,30 +79,9 @@ std::vector<Vec2d> ConvexHull2d(std::vector<Vec2d> p) {
   return hull;
 }
 
-Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_mm, const GraspOptions& o) {
-  if (!o.Check()) {
-    return InvalidArgument("grasp planning: invalid options");
-  }
-  if (points.size() < 3) {
-    return InvalidArgument("grasp planning: need at least 3 model points, got " + std::to_string(points.size()));
-  }
-  double z_top = -1e300;
-  for (const Vec3d& p : points) {
-    if (!p.allFinite()) return InvalidArgument("grasp planning: a model point is not finite");
-    z_top = std::max(z_top, p.z());
-  }
-  const double height = z_top - table_z_mm;
-  if (height < o.table_clearance_mm + 2.0) {
-    return NotFound("grasp planning: the object is only " + std::to_string(height) + " mm high");
-  }
-  // Silhouette at grasp height: for a solid object the top layer's outline (§8.11); the hull of all
-  // points equals it for objects standing on the table, and is the outline of flat objects.
-  std::vector<Vec2d> xy;
-  for (const Vec3d& p : points) xy.push_back(p.head<2>());
-  const std::vector<Vec2d> hull = ConvexHull2d(xy);
-  if (hull.size() < 3) {
-    return NotFound("grasp planning: the silhouette is degenerate (points in a line)");
-  }
+namespace {
+
+Vec2d HullCentroid(const std::vector<Vec2d>& hull) {
   Vec2d centroid = Vec2d::Zero();
   double area = 0;
   for (std::size_t i = 0; i < hull.size(); ++i) {
@@ -112,12 +91,34 @@ Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_
     area += c;
     centroid += (a + b) * c;
   }
-  centroid /= (3.0 * area);
-  const double contact_z =
-      std::max(z_top - std::min(o.grasp_depth_mm, 0.5 * height), table_z_mm + o.table_clearance_mm);
-  const double cone = std::atan(o.friction);
-  const double half_spacing = 0.5 * o.hand.finger_spacing_mm;
+  return std::abs(area) > 1e-9 ? Vec2d(centroid / (3.0 * area)) : hull.front();
+}
 
+// The model's cross-section at height z: where its edges cross the plane, and the points above it (less
+// `tol_mm`) seen from above - an object standing on the table does not overhang, so every point above
+// lies over its cross-section; a missing edge then makes the section smaller, never larger. Convex
+// hull; empty when fewer than three points.
+std::vector<Vec2d> CrossSection(const std::vector<Vec3d>& points, const std::vector<std::pair<int, int>>& edges, double z,
+                                double tol_mm) {
+  std::vector<Vec2d> xy;
+  for (const auto& [i, j] : edges) {
+    const Vec3d& a = points[static_cast<std::size_t>(i)];
+    const Vec3d& b = points[static_cast<std::size_t>(j)];
+    if ((a.z() - z) * (b.z() - z) < 0) {
+      const double t = (z - a.z()) / (b.z() - a.z());
+      xy.push_back((a + t * (b - a)).head<2>());
+    }
+  }
+  for (const Vec3d& p : points) {
+    if (p.z() >= z - tol_mm) xy.push_back(p.head<2>());
+  }
+  if (xy.size() < 3) return {};
+  return ConvexHull2d(xy);
+}
+
+// Candidate grasps on one silhouette (two-on-one on each edge, tripods about the centroid).
+std::vector<PlanarGrasp> Candidates(const std::vector<Vec2d>& hull, const Vec2d& centroid, const GraspOptions& o) {
+  const double half_spacing = 0.5 * o.hand.finger_spacing_mm;
   std::vector<PlanarGrasp> candidates;
   // Two-on-one (spread 0): the thumb on a silhouette edge, pushing along its inward normal; fingers 1
   // and 2, half the finger spacing either side, push back from the far side.
@@ -179,40 +180,130 @@ Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_
     g.axis = -thumb_dir;
     candidates.push_back(g);
   }
+  return candidates;
+}
+
+// How far a wall leans at a contact: the silhouettes `dz` above and below, measured along the push from
+// the contact's line. The face's normal tilts by atan(inset / rise) out of the horizontal plane.
+double WallTilt(const std::vector<Vec2d>& below, const std::vector<Vec2d>& above, const Vec2d& contact, const Vec2d& push,
+                double dz) {
+  auto reach = [&](const std::vector<Vec2d>& hull) -> std::optional<double> {
+    if (hull.size() < 3) return std::nullopt;
+    // Entry distance along the push from well outside: the hull's boundary facing the finger.
+    const Vec2d from = contact - 1000.0 * push;
+    const auto hit = ExitPoint(hull, contact + 1000.0 * push, -push);
+    if (!hit) return std::nullopt;
+    return (hit->point - from).dot(push);
+  };
+  const auto lo = reach(below), hi = reach(above);
+  if (!lo || !hi) return kPi / 2;  // the wall ends within dz: not a face to push on
+  return std::atan2(std::abs(*hi - *lo), 2.0 * dz);
+}
+
+}  // namespace
+
+Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_mm, const GraspOptions& o,
+                               const std::vector<std::pair<int, int>>& edges) {
+  if (!o.Check()) {
+    return InvalidArgument("grasp planning: invalid options");
+  }
+  if (points.size() < 3) {
+    return InvalidArgument("grasp planning: need at least 3 model points, got " + std::to_string(points.size()));
+  }
+  double z_top = -1e300;
+  for (const Vec3d& p : points) {
+    if (!p.allFinite()) return InvalidArgument("grasp planning: a model point is not finite");
+    z_top = std::max(z_top, p.z());
+  }
+  for (const auto& [i, j] : edges) {
+    if (i < 0 || j < 0 || i >= static_cast<int>(points.size()) || j >= static_cast<int>(points.size())) {
+      return InvalidArgument("grasp planning: an edge names a point that does not exist");
+    }
+  }
+  const double height = z_top - table_z_mm;
+  if (height < o.table_clearance_mm + 2.0) {
+    return NotFound("grasp planning: the object is only " + std::to_string(height) + " mm high");
+  }
+  // Silhouette at grasp height (§8.11: the top layer's outline for a solid object). Without edges: the
+  // hull of all points, right for objects with vertical walls and for flat objects. With the model's
+  // edges: the true cross-section at each candidate height, so sloped faces (a prism's roof) and parts
+  // that stick out lower down (a bracket's foot) are seen as they are, and the walls' lean at the
+  // contacts enters the friction check.
+  std::vector<Vec2d> xy;
+  for (const Vec3d& p : points) xy.push_back(p.head<2>());
+  const std::vector<Vec2d> all_hull = ConvexHull2d(xy);
+  if (all_hull.size() < 3) {
+    return NotFound("grasp planning: the silhouette is degenerate (points in a line)");
+  }
+  const double default_z =
+      std::max(z_top - std::min(o.grasp_depth_mm, 0.5 * height), table_z_mm + o.table_clearance_mm);
+  std::vector<double> heights = {default_z};
+  if (!edges.empty()) {
+    for (double f : {0.15, 0.3, 0.45, 0.6, 0.75}) {
+      const double z = z_top - f * height;
+      if (z >= table_z_mm + o.table_clearance_mm && std::abs(z - default_z) > 1.0) heights.push_back(z);
+    }
+  }
+  const double cone = std::atan(o.friction);
+  const double dz = std::max(2.0, std::min(6.0, 0.1 * height));
+  const Vec2d all_centroid = HullCentroid(all_hull);
 
   GraspPlan best;
   bool found = false;
-  for (const PlanarGrasp& g : candidates) {
-    if (g.width_mm < o.hand.min_aperture_mm || g.width_mm > o.hand.max_aperture_mm) continue;
-    const double margin = FrictionMargin(g, cone);
-    if (margin <= 0) continue;
-    // Torque when lifting: the hand's centre line should pass near the silhouette's centroid.
-    const double offset = (g.centre - centroid).norm();
-    const double quality = margin / cone - offset / 50.0 - 0.2 * g.width_mm / o.hand.max_aperture_mm;
-    if (found && quality <= best.quality) continue;
-    found = true;
-    best.quality = quality;
-    best.width_mm = g.width_mm;
-    best.spread_rad = g.spread_rad;
-    best.friction_margin_rad = margin;
-    best.centroid_offset_mm = offset;
-    best.thumb_contact = Vec3d(g.contacts[0].x(), g.contacts[0].y(), contact_z);
-    Vec2d fingers = Vec2d::Zero();
-    for (std::size_t k = 1; k < g.contacts.size(); ++k) fingers += g.contacts[k];
-    fingers /= static_cast<double>(g.contacts.size() - 1);
-    best.finger_contact = Vec3d(fingers.x(), fingers.y(), contact_z);
-    // Hand frame: x along the grip (thumb towards fingers 1-2), z down, y = z cross x.
-    const Vec3d x(g.axis.x(), g.axis.y(), 0.0);
-    const Vec3d z(0, 0, -1);
-    const Vec3d y = z.cross(x);
-    best.world_from_grasp.rotation << x, y, z;
-    best.world_from_grasp.translation = Vec3d(g.centre.x(), g.centre.y(), contact_z);
+  int considered = 0;
+  for (const double contact_z : heights) {
+    std::vector<Vec2d> hull = all_hull;
+    std::vector<Vec2d> below, above;
+    if (!edges.empty()) {
+      hull = CrossSection(points, edges, contact_z, 0.5);
+      below = CrossSection(points, edges, contact_z - dz, 0.5);
+      above = CrossSection(points, edges, contact_z + dz, 0.5);
+      if (hull.size() < 3) continue;
+    }
+    const Vec2d centroid = HullCentroid(hull);
+    const std::vector<PlanarGrasp> candidates = Candidates(hull, centroid, o);
+    considered += static_cast<int>(candidates.size());
+    for (const PlanarGrasp& g : candidates) {
+      if (g.width_mm < o.hand.min_aperture_mm || g.width_mm > o.hand.max_aperture_mm) continue;
+      double margin = FrictionMargin(g, cone);
+      if (!edges.empty()) {
+        for (std::size_t k = 0; k < g.contacts.size(); ++k) {
+          const double tilt = WallTilt(below, above, g.contacts[k], g.pushes[k], dz);
+          const double planar = AngleBetween(g.pushes[k], -g.normals[k]);
+          // Angle between the horizontal push and the tilted normal (small-angle composition is exact
+          // enough here: both are below the cone for a feasible grasp).
+          margin = std::min(margin, cone - std::sqrt(planar * planar + tilt * tilt));
+        }
+      }
+      if (margin <= 0) continue;
+      // Torque when lifting: the hand's centre line should pass near the object's centroid.
+      const double offset = (g.centre - all_centroid).norm();
+      const double quality = margin / cone - offset / 50.0 - 0.2 * g.width_mm / o.hand.max_aperture_mm;
+      if (found && quality <= best.quality) continue;
+      found = true;
+      best.quality = quality;
+      best.width_mm = g.width_mm;
+      best.spread_rad = g.spread_rad;
+      best.friction_margin_rad = margin;
+      best.centroid_offset_mm = offset;
+      best.thumb_contact = Vec3d(g.contacts[0].x(), g.contacts[0].y(), contact_z);
+      Vec2d fingers = Vec2d::Zero();
+      for (std::size_t k = 1; k < g.contacts.size(); ++k) fingers += g.contacts[k];
+      fingers /= static_cast<double>(g.contacts.size() - 1);
+      best.finger_contact = Vec3d(fingers.x(), fingers.y(), contact_z);
+      // Hand frame: x along the grip (thumb towards fingers 1-2), z down, y = z cross x.
+      const Vec3d x(g.axis.x(), g.axis.y(), 0.0);
+      const Vec3d z(0, 0, -1);
+      const Vec3d y = z.cross(x);
+      best.world_from_grasp.rotation << x, y, z;
+      best.world_from_grasp.translation = Vec3d(g.centre.x(), g.centre.y(), contact_z);
+    }
   }
   if (!found) {
     return NotFound("grasp planning: no grasp fits the hand with friction " + std::to_string(o.friction) + " (" +
-                    std::to_string(candidates.size()) + " candidates considered)");
+                    std::to_string(considered) + " candidates considered)");
   }
-  best.candidates_considered = static_cast<int>(candidates.size());
+  best.candidates_considered = considered;
   best.world_from_approach = Translation(0.0, 0.0, o.approach_mm) * best.world_from_grasp;
   best.world_from_lift = Translation(0.0, 0.0, o.lift_mm) * best.world_from_grasp;
   return best;

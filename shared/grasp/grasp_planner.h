@@ -13,6 +13,7 @@
 #pragma once
 
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "shared/geometry/rigid3.h"
@@ -60,8 +61,11 @@ struct GraspPlan {
 };
 
 // Plans a top grasp on an object given its model points (world frame, mm; z up, the table at
-// table_z_mm). NotFound when no antipodal grasp fits the hand; InvalidArgument on bad input.
-Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_mm, const GraspOptions& options = {});
+// table_z_mm) and, when known, its edges (index pairs into `points`): with edges the silhouette is the
+// model's cross-section at each candidate contact height and leaning walls count against friction.
+// NotFound when no antipodal grasp fits the hand; InvalidArgument on bad input.
+Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_mm, const GraspOptions& options = {},
+                               const std::vector<std::pair<int, int>>& edges = {});
 
 // The convex hull (counter-clockwise) of 2D points; exposed for tests and the twin's contact check.
 std::vector<Vec2d> ConvexHull2d(std::vector<Vec2d> points);

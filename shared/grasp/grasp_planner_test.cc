@@ -76,6 +76,24 @@ TEST(GraspPlannerTest, CylinderApproximatedByManyPoints) {
   EXPECT_LT(plan->centroid_offset_mm, 2.0);
 }
 
+// A triangular prism lying on the table (ridge along y, 70 mm up; base 100 x 120 mm): its long sides are
+// the sloped roof, where a finger pushing horizontally slips. With the model's edges the planner sees the
+// cross-section narrow towards the ridge and grasps the vertical triangular ends, closing along y; from
+// the points alone it would take the narrower base width across the roof.
+TEST(GraspPlannerTest, PrismIsGraspedOnItsVerticalEndsNotTheRoof) {
+  const std::vector<Vec3d> p = {{-50, -60, 0}, {50, -60, 0}, {0, -60, 70}, {-50, 60, 0}, {50, 60, 0}, {0, 60, 70}};
+  const std::vector<std::pair<int, int>> edges = {{0, 1}, {1, 2}, {2, 0}, {3, 4}, {4, 5}, {5, 3}, {0, 3}, {1, 4}, {2, 5}};
+  const auto plan = PlanTopGrasp(p, 0.0, GraspOptions{}, edges);
+  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+  const Vec3d axis = plan->world_from_grasp.rotation.col(0);
+  EXPECT_LT(std::abs(axis.x()), 0.1) << "the grip closes along the ridge, onto the vertical ends";
+  EXPECT_NEAR(plan->width_mm, 120.0, 1.0);
+  const auto blind = PlanTopGrasp(p, 0.0);
+  ASSERT_TRUE(blind.ok());
+  EXPECT_GT(std::abs(blind->world_from_grasp.rotation.col(0).x()), 0.9) << "points alone: across the roof";
+  EXPECT_EQ(PlanTopGrasp(p, 0.0, GraspOptions{}, {{0, 9}}).status().code(), StatusCode::kInvalidArgument);
+}
+
 TEST(GraspPlannerTest, BadInput) {
   EXPECT_EQ(PlanTopGrasp({}, 0.0).status().code(), StatusCode::kInvalidArgument);
   auto pts = BoxPoints(Vec3d::Zero(), Vec3d(80, 60, 50), 0);

@@ -342,7 +342,17 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
                 "finding the object");
   }
   // 3. Grasp (§8.11), in the world, then in robot 2's base (eq. 3.4).
-  auto plan = PlanTopGrasp(object, o.table_centre_world.z(), o.grasp);
+  // The object's edges, renumbered into `object` (the planner's cross-sections come from them).
+  std::vector<int> index_in_object(model.points.size(), -1);
+  for (std::size_t k = 0; k < report.object_points.size(); ++k) {
+    index_in_object[static_cast<std::size_t>(report.object_points[k])] = static_cast<int>(k);
+  }
+  std::vector<std::pair<int, int>> object_edges;
+  for (const auto& [a, b] : model.edges) {
+    const int ia = index_in_object[static_cast<std::size_t>(a)], ib = index_in_object[static_cast<std::size_t>(b)];
+    if (ia >= 0 && ib >= 0) object_edges.emplace_back(ia, ib);
+  }
+  auto plan = PlanTopGrasp(object, o.table_centre_world.z(), o.grasp, object_edges);
   if (!plan.ok()) return fail(plan.status(), "grasp planning");
   report.grasp = *plan;
   if (!o.pick) return report;
