@@ -75,6 +75,7 @@ Status TrackModelOptions::Check() const {
   if (!(keep_behind_m >= 0)) return InvalidArgument("track: keep_behind_m must be >= 0");
   if (max_support < 1) return InvalidArgument("track: max_support must be >= 1");
   if (!(footprint_margin_m >= 0)) return InvalidArgument("track: footprint_margin_m must be >= 0");
+  if (!(evidence_span_m >= 0 && std::isfinite(evidence_span_m))) return InvalidArgument("track: evidence_span_m must be >= 0");
   return Status::Ok();
 }
 
@@ -107,6 +108,30 @@ bool TrackModel::InView(const std::vector<std::vector<Vec2d>>& footprints_odom, 
     if (fp.size() < 3 || !InsidePolygonWithMargin(fp, p, options_.footprint_margin_m)) return false;
   }
   return true;
+}
+
+std::vector<char> TrackModel::StretchInView(const std::vector<std::vector<Vec2d>>& footprints_odom) const {
+  const std::size_t n = samples_.size();
+  std::vector<char> stretch(n, 0);
+  if (footprints_odom.empty()) return stretch;
+  std::vector<char> point(n, 0);
+  std::vector<double> s(n, 0.0);
+  std::vector<std::size_t> out(n + 1, 0);  // prefix counts of samples out of view
+  for (std::size_t i = 0; i < n; ++i) {
+    point[i] = InView(footprints_odom, samples_[i].xy) ? 1 : 0;
+    if (i > 0) s[i] = s[i - 1] + (samples_[i].xy - samples_[i - 1].xy).norm();
+    out[i + 1] = out[i] + (point[i] ? 0 : 1);
+  }
+  // A sliding window [lo, hi] of the samples within evidence_span_m of sample i.
+  std::size_t lo = 0, hi = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!point[i]) continue;
+    while (s[i] - s[lo] > options_.evidence_span_m) ++lo;
+    hi = std::max(hi, i);
+    while (hi + 1 < n && s[hi + 1] - s[i] <= options_.evidence_span_m) ++hi;
+    stretch[i] = out[hi + 1] == out[lo] ? 1 : 0;
+  }
+  return stretch;
 }
 
 double TrackModel::progress_index_s() const {
@@ -346,8 +371,9 @@ Result<TrackUpdateStats> TrackModel::Update(const TrackObservation& observation,
 
   // Samples ahead that both cameras should have seen but nothing confirmed lose support; the model's
   // unconfirmed tail is dropped once its support is gone (a false extension, or tape removed).
+  const std::vector<char> evidence = StretchInView(footprints);
   for (std::size_t i = progress_; i < samples_.size(); ++i) {
-    if (samples_[i].seen_ns == observation.timestamp_ns || samples_[i].gap || !InView(footprints, samples_[i].xy)) continue;
+    if (samples_[i].seen_ns == observation.timestamp_ns || samples_[i].gap || !evidence[i]) continue;
     samples_[i].support -= 2;
   }
   // The unconfirmed tail: samples at the far end that this view did not see. If part of it was
@@ -358,7 +384,7 @@ Result<TrackUpdateStats> TrackModel::Update(const TrackObservation& observation,
   // left was never seen again, which is no evidence (it lies between the vehicle and the footprints,
   // or the view is blank because perception failed on this pair).
   for (std::size_t j = unconfirmed; j < samples_.size(); ++j) {
-    if (samples_[j].support <= 0 && !samples_[j].gap && InView(footprints, samples_[j].xy)) {
+    if (samples_[j].support <= 0 && !samples_[j].gap && evidence[j]) {
       stats.samples_dropped += static_cast<int>(samples_.size() - j);
       samples_.resize(std::max<std::size_t>(j, progress_ + 2));
       end_seen_ = false;
@@ -456,6 +482,7 @@ TrackAhead TrackModel::Ahead(double max_length_m, double behind_m) const {
     out.points.push_back(samples_[i].xy);
     out.support.push_back(samples_[i].support);
     out.gap.push_back(samples_[i].gap);
+    out.seen_ns.push_back(samples_[i].seen_ns);
     if (len - back >= max_length_m) break;
   }
   out.length_m = len;

@@ -38,6 +38,11 @@ struct TrackModelOptions {
   double keep_behind_m = 0.5;        // model kept behind the vehicle
   int max_support = 8;               // support saturates here
   double footprint_margin_m = 0.05;  // a sample counts as "in view" this far inside a footprint
+  // Tape is only perceived as a strip of some length (tape_geometry's min_piece_length_m, and both
+  // edges inside the images): a sample counts as contradicted (in view, no tape seen) only when the
+  // model this far on either side of it is in view as well. The tip of a corner whose next leg runs
+  // out of the view (an acute corner under the vehicle) is no evidence against that leg.
+  double evidence_span_m = 0.08;
 
   Status Check() const;
 };
@@ -54,6 +59,7 @@ struct TrackAhead {
   std::vector<Vec2d> points;   // odometry frame, from `behind_m` behind the progress point forward
   std::vector<int> support;    // per point
   std::vector<bool> gap;       // per point: the stretch after it is a bridged gap
+  std::vector<int64_t> seen_ns;  // per point: exposure time of the newest observation that saw it
   double length_m = 0.0;
   double progress_offset_m = 0.0;  // arc length from points.front() to the progress point
   bool end_known = false;      // the last point is the track's end
@@ -101,6 +107,8 @@ class TrackModel {
   void Initialise(const std::vector<Vec2d>& piece, int64_t seen_ns);
   std::vector<Vec2d> Densify(const std::vector<Vec2d>& pts) const;
   bool InView(const std::vector<std::vector<Vec2d>>& footprints_odom, const Vec2d& p) const;
+  // Per sample: it and the model within evidence_span_m either side of it are in view.
+  std::vector<char> StretchInView(const std::vector<std::vector<Vec2d>>& footprints_odom) const;
 
   TrackModelOptions options_;
   std::vector<TrackSample> samples_;
