@@ -161,7 +161,10 @@ Decision ControlLoop::Decide(int64_t now_ns, PlanOutput* plan, const Pose2& odom
     const TrackAhead ahead = track_.Ahead(1.0, 0.0);
     if (ahead.end_known && ahead.length_m < 0.02) return Decision::kAtEnd;
   }
-  if (!track_.initialised() || static_cast<double>(now_ns - track_.last_associated_ns()) * 1e-9 > options_.track_lost_s) {
+  // The track must have been seen recently - except while the planner turns a blind acute corner on
+  // the spot towards a leg it saw on the approach (bounded in time and angle by the planner itself).
+  if (!track_.initialised() ||
+      (static_cast<double>(now_ns - track_.last_associated_ns()) * 1e-9 > options_.track_lost_s && !planner_.corner_turn_active())) {
     return Decision::kTrackLost;
   }
   PlannerInput in;
@@ -174,7 +177,11 @@ Decision ControlLoop::Decide(int64_t now_ns, PlanOutput* plan, const Pose2& odom
   }
   in.track = track_.Ahead(4.0);
   in.footprints_m = perception_->footprints();
+  const bool corner_turn = planner_.corner_turn_active();
   *plan = planner_.Plan(in);
+  if (corner_turn && !planner_.corner_turn_active() && !planner_.corner_turn_failure().empty()) {
+    spdlog::warn("{}", planner_.corner_turn_failure());
+  }
   if (plan->state == PlanState::kAtEnd) return Decision::kAtEnd;
   if (plan->state == PlanState::kNoTrack || plan->state == PlanState::kOffTrack) return Decision::kTrackLost;
   return Decision::kDrive;
@@ -279,8 +286,9 @@ Result<TickRecord> ControlLoop::Step() {
     spdlog::info("t={:.3f} s: {}", static_cast<double>(t - start_ns_) * 1e-9, text);
     if (sink_) sink_(t, text);
   }
-  spdlog::debug("t={:.3f} {} {} v={:.3f} w={:.3f} e={:.4f}", static_cast<double>(t - start_ns_) * 1e-9, DecisionName(d),
-                PlanStateName(plan.state), v, w, plan.lateral_error_m);
+  spdlog::debug("t={:.3f} {} {} v={:.3f} w={:.3f} e={:.4f} corner r={:.3f}{}", static_cast<double>(t - start_ns_) * 1e-9,
+                DecisionName(d), PlanStateName(plan.state), v, w, plan.lateral_error_m, plan.corner_radius_m,
+                plan.corner_in_view ? "" : " (not in view)");
   last_decision_ = d;
   first_tick_ = false;
   if (log_ != nullptr) {

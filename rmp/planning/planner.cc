@@ -69,6 +69,8 @@ const char* PlanStateName(PlanState state) {
     case PlanState::kApproachEnd: return "approach-end";
     case PlanState::kAtEnd: return "at-end";
     case PlanState::kPivot: return "pivot";
+    case PlanState::kCornerApproach: return "corner-approach";
+    case PlanState::kCornerPivot: return "corner-pivot";
     case PlanState::kNoTrack: return "no-track";
     case PlanState::kOffTrack: return "off-track";
   }
@@ -108,6 +110,17 @@ Status PlannerOptions::Check() const {
     return InvalidArgument("planner: uncertain_speed_fraction must be in (0, 1]");
   }
   if (!(stop_margin_m >= 0)) return InvalidArgument("planner: stop_margin_m must be >= 0");
+  if (!(pivot_corner_min_turn_deg > 0 && pivot_corner_min_turn_deg < 180)) {
+    return InvalidArgument("planner: pivot_corner_min_turn_deg must be in (0, 180)");
+  }
+  if (!positive(pivot_commit_m)) return InvalidArgument("planner: pivot_commit_m must be positive");
+  if (!positive(pivot_rate_rps) || pivot_rate_rps > max_yaw_rate_rps) {
+    return InvalidArgument("planner: pivot_rate_rps must be in (0, max_yaw_rate_rps]");
+  }
+  if (!positive(pivot_timeout_s)) return InvalidArgument("planner: pivot_timeout_s must be positive");
+  if (!positive(pivot_min_leg_m)) return InvalidArgument("planner: pivot_min_leg_m must be positive");
+  if (!(pivot_extra_deg >= 0 && pivot_extra_deg <= 90)) return InvalidArgument("planner: pivot_extra_deg must be in [0, 90]");
+  if (!(pivot_done_deg > 0 && pivot_done_deg < 45)) return InvalidArgument("planner: pivot_done_deg must be in (0, 45)");
   return Status::Ok();
 }
 
@@ -117,6 +130,152 @@ void Planner::Reset() {
   sent_.clear();
   path_ = SmoothPath();
   radius_cache_.clear();
+  corner_turn_ = CornerTurn();
+  corner_turn_failure_.clear();
+  corners_turned_.clear();
+  corners_failed_.clear();
+}
+
+void Planner::FailCornerTurn(const std::string& why) {
+  // Not retried at this vertex; from here the ordinary rules apply (the control loop stops the vehicle
+  // while the track stays unseen for longer than its track-lost limit).
+  corners_failed_.push_back(corner_turn_.vertex);
+  if (corners_failed_.size() > 8) corners_failed_.erase(corners_failed_.begin());
+  corner_turn_failure_ = why;
+  corner_turn_ = CornerTurn();
+}
+
+double Planner::TurnedCornerEnd() const {
+  double s_min = -1e300;
+  const auto& spans = path_.corner_spans();
+  for (std::size_t c = 0; c < spans.size() && c + 1 < path_.vertices().size(); ++c) {
+    for (const Vec2d& v : corners_turned_) {
+      // Just past the corner's end: its sharp vertex ends the leg before at the same point.
+      if ((path_.vertices()[c + 1] - v).norm() < 0.2) s_min = std::max(s_min, spans[c].second + 1e-6);
+    }
+  }
+  return s_min;
+}
+
+bool Planner::BlindCorner(const PlannerInput& input, const Pose2& predicted, const PathProjection& proj, double v_pred, double* s_stop, double* v_cmd,
+                          double* w_cmd, PlanOutput* out) {
+  if (!options_.pivot_at_blind_corners) return false;
+  const std::vector<Vec2d>& verts = path_.vertices();
+  const auto& spans = path_.corner_spans();
+  auto turn_at = [&](std::size_t c) {
+    const Vec2d d0 = (verts[c + 1] - verts[c]).normalized(), d1 = (verts[c + 2] - verts[c + 1]).normalized();
+    return std::atan2(d0.x() * d1.y() - d0.y() * d1.x(), d0.dot(d1));
+  };
+  auto turned_before = [&](const Vec2d& v) {
+    for (const auto* list : {&corners_turned_, &corners_failed_}) {
+      for (const Vec2d& t : *list) {
+        if ((t - v).norm() < 0.2) return true;
+      }
+    }
+    return false;
+  };
+  // How far beyond the vertex the next leg is known from repeated sightings (support >= min_support).
+  auto leg_known_m = [&](const Vec2d& vertex, const Vec2d& d2) {
+    double known = 0.0;
+    for (std::size_t i = 0; i < input.track.points.size() && i < input.track.support.size(); ++i) {
+      const Vec2d r = input.track.points[i] - vertex;
+      const double along = r.dot(d2), across = std::abs(d2.x() * r.y() - d2.y() * r.x());
+      if (along > 0 && across < 0.05 && input.track.support[i] >= options_.min_support) known = std::max(known, along);
+    }
+    return known;
+  };
+  const std::size_t n_corners = std::min(spans.size(), verts.size() >= 2 ? verts.size() - 2 : 0);
+  std::size_t c = n_corners;
+  if (corner_turn_.committed) {
+    // The committed corner: the vertex nearest the one remembered (new observations move it a little).
+    double best = 0.15;
+    for (std::size_t k = 0; k < n_corners; ++k) {
+      const double d = (verts[k + 1] - corner_turn_.vertex).norm();
+      if (d < best) {
+        best = d;
+        c = k;
+      }
+    }
+    if (c == n_corners) {
+      FailCornerTurn("the committed corner's vertex is no longer in the track model");
+      *v_cmd = *w_cmd = 0.0;
+      out->state = PlanState::kNoTrack;
+      return true;
+    }
+  } else {
+    // The next real corner ahead; only an acute one is turned on the spot.
+    for (std::size_t k = 0; k < n_corners; ++k) {
+      if (spans[k].second < proj.s) continue;
+      const double turn = turn_at(k);
+      if (std::abs(turn) < DegToRad(options_.min_corner_turn_deg)) continue;
+      if (std::abs(turn) >= DegToRad(options_.pivot_corner_min_turn_deg) && !turned_before(verts[k + 1]) &&
+          leg_known_m(verts[k + 1], (verts[k + 2] - verts[k + 1]).normalized()) >= options_.pivot_min_leg_m) {
+        c = k;
+      }
+      break;
+    }
+    if (c == n_corners) return false;
+    // Brake to a stop at the vertex; commit once close to it.
+    *s_stop = std::min(*s_stop, spans[c].first);
+    if (spans[c].first - proj.s > options_.pivot_commit_m) return false;
+    corner_turn_ = CornerTurn();
+    corner_turn_.committed = true;
+    corner_turn_.commit_ns = input.now_ns;
+  }
+  corner_turn_.vertex = verts[c + 1];
+  corner_turn_.turn_rad = turn_at(c);
+  auto fail = [&](const std::string& why) {
+    FailCornerTurn(why);
+    *v_cmd = *w_cmd = 0.0;
+    out->state = PlanState::kNoTrack;
+    return true;
+  };
+  if (static_cast<double>(input.now_ns - corner_turn_.commit_ns) * 1e-9 > options_.pivot_timeout_s) {
+    return fail("blind corner: not turned and re-acquired within pivot_timeout_s");
+  }
+  const double to_vertex = spans[c].first - proj.s;
+  if (!corner_turn_.pivoting) {
+    *s_stop = std::min(*s_stop, spans[c].first);
+    if (to_vertex > 0.03 || (to_vertex > 0.005 && std::abs(v_pred) > 0.05)) return false;  // still approaching
+    corner_turn_.pivoting = true;
+    corner_turn_.pivot_ns = input.now_ns;
+    corner_turn_.last_yaw = input.odom_from_vehicle.yaw;
+    corner_turn_.turned_rad = 0.0;
+  }
+  // Turning on the spot: the angle turned so far (in the corner's direction), the heading error to the
+  // remembered next leg, and whether an observation since the pivot began has seen that leg.
+  const double sign = corner_turn_.turn_rad >= 0 ? 1.0 : -1.0;
+  corner_turn_.turned_rad += sign * WrapAngle(input.odom_from_vehicle.yaw - corner_turn_.last_yaw);
+  corner_turn_.last_yaw = input.odom_from_vehicle.yaw;
+  const Vec2d d2 = (verts[c + 2] - verts[c + 1]).normalized();
+  const double th = WrapAngle(predicted.yaw - std::atan2(d2.y(), d2.x()));
+  bool reacquired = false;
+  for (std::size_t i = 0; i < input.track.points.size() && i < input.track.seen_ns.size(); ++i) {
+    const Vec2d r = input.track.points[i] - corner_turn_.vertex;
+    const double along = r.dot(d2), across = std::abs(d2.x() * r.y() - d2.y() * r.x());
+    if (along > 0.1 && across < 0.05 && input.track.seen_ns[i] >= corner_turn_.pivot_ns) {
+      reacquired = true;
+      break;
+    }
+  }
+  if (std::abs(th) <= DegToRad(options_.pivot_done_deg)) {
+    if (!reacquired) return fail("blind corner: facing the remembered leg without seeing it again");
+    corners_turned_.push_back(corner_turn_.vertex);
+    if (corners_turned_.size() > 8) corners_turned_.erase(corners_turned_.begin());
+    corner_turn_ = CornerTurn();
+    return false;  // follow the new leg
+  }
+  if (corner_turn_.turned_rad > std::abs(corner_turn_.turn_rad) + DegToRad(options_.pivot_extra_deg)) {
+    return fail("blind corner: turned beyond the corner's angle without facing the next leg");
+  }
+  // Towards the leg the way the corner turns (the short way once within 90 deg of it), slowing down
+  // on the last few degrees.
+  const double dir = std::abs(th) > 0.5 * kPi ? sign : -std::copysign(1.0, th);
+  *v_cmd = 0.0;
+  *w_cmd = dir * std::min(options_.pivot_rate_rps, std::max(0.15, 2.0 * std::abs(th)));
+  out->state = PlanState::kCornerPivot;
+  out->heading_error_rad = th;
+  return true;
 }
 
 void Planner::CommandSent(int64_t t_ns, double speed_mps, double yaw_rate_rps) {
@@ -279,11 +438,20 @@ PlanOutput Planner::Plan(const PlannerInput& input) {
 
   const std::vector<Vec2d> vertices = SimplifyPolyline(input.track.points, options_.simplify_tolerance_m);
   std::vector<bool> corner_in_view;
-  const std::vector<double> radii = CornerRadii(vertices, input.odom_from_vehicle, input.footprints_m, &corner_in_view);
+  std::vector<double> radii = CornerRadii(vertices, input.odom_from_vehicle, input.footprints_m, &corner_in_view);
+  if (options_.pivot_at_blind_corners) {
+    // Acute corners are turned on the spot at their vertex (5. in the header): no arc.
+    for (std::size_t i = 1; i + 1 < vertices.size() && i - 1 < radii.size(); ++i) {
+      const Vec2d d0 = (vertices[i] - vertices[i - 1]).normalized(), d1 = (vertices[i + 1] - vertices[i]).normalized();
+      if (std::abs(std::atan2(d0.x() * d1.y() - d0.y() * d1.x(), d0.dot(d1))) >= DegToRad(options_.pivot_corner_min_turn_deg)) {
+        radii[i - 1] = 0.0;
+      }
+    }
+  }
   path_ = SmoothPath::Build(vertices, radii);
   if (path_.empty() || path_.length() < 1e-3) return stop(PlanState::kNoTrack);
 
-  const PathProjection proj = path_.Project(predicted.translation(), predicted.yaw);
+  PathProjection proj = path_.Project(predicted.translation(), predicted.yaw, TurnedCornerEnd());
   out.lateral_error_m = proj.lateral_m;
   out.heading_error_rad = proj.heading_error;
   if (proj.distance_m > options_.max_lateral_error_m) return stop(PlanState::kOffTrack);
@@ -299,48 +467,62 @@ PlanOutput Planner::Plan(const PlannerInput& input) {
     }
   }
 
-  const double s_stop = std::max(0.0, path_.length() - (input.track.end_known ? options_.stop_margin_m : 0.0));
+  double s_stop = std::max(0.0, path_.length() - (input.track.end_known ? options_.stop_margin_m : 0.0));
+  double v_cmd = 0.0, w_cmd = 0.0;
+  const std::size_t turned_before = corners_turned_.size();
+  const bool corner_decided = BlindCorner(input, predicted, proj, v_pred, &s_stop, &v_cmd, &w_cmd, &out);
+  if (corner_decided && out.state == PlanState::kNoTrack) return stop(PlanState::kNoTrack);
+  if (corners_turned_.size() != turned_before) {
+    // A corner was just turned: from here the path continues on its far side.
+    proj = path_.Project(predicted.translation(), predicted.yaw, TurnedCornerEnd());
+    out.lateral_error_m = proj.lateral_m;
+    out.heading_error_rad = proj.heading_error;
+  }
   const double to_stop = s_stop - proj.s;
   out.distance_to_stop_m = std::max(0.0, to_stop);
-  if (to_stop <= 0.005) return stop(input.track.end_known ? PlanState::kAtEnd : PlanState::kUncertain);
-
-  // Speed profile: backward pass from the stop point (v = 0) to the vehicle.
-  const double ds = 0.02;
-  double v_profile = 0.0;
-  for (double s = s_stop; s >= proj.s - 1e-9; s -= ds) {
-    const double lim = SpeedLimitAt(s, input.track, s_stop);
-    v_profile = std::min(lim, std::sqrt(v_profile * v_profile + 2.0 * options_.max_decel_mps2 * std::min(ds, s_stop - s + ds)));
-  }
-  double v_target = std::min(v_profile, std::sqrt(2.0 * options_.max_decel_mps2 * std::max(0.0, to_stop)));
-  v_target = std::min(v_target, SpeedLimitAt(proj.s, input.track, s_stop));
-
-  // Tracking law at the predicted pose.
-  const double v_ref = std::max(std::max(v_target, v_pred), 0.02);
-  const double length = std::max(options_.tracking_min_length_m, v_ref * options_.tracking_time_s);
-  const double k_lat = 1.0 / (length * length), k_head = 2.0 / length;
-  const double s_prev = proj.s + v_ref * options_.preview_time_s;
-  const double kappa = path_.MeanCurvature(proj.s, std::max(s_prev, proj.s + 0.005));
-  const double e = proj.lateral_m, th = proj.heading_error;
-  double v_cmd = v_target;
-  double w_cmd;
-  if (std::abs(th) > DegToRad(options_.pivot_heading_error_deg)) {
-    // Facing away from the path: turn on the spot towards it first.
-    v_cmd = 0.0;
-    w_cmd = -std::copysign(std::min(options_.max_yaw_rate_rps, 2.0 * std::abs(th)), th);
-    out.state = PlanState::kPivot;
+  if (corner_decided) {
+    out.distance_to_stop_m = 0.0;
+  } else if (to_stop <= 0.005) {
+    return stop(input.track.end_known ? PlanState::kAtEnd : PlanState::kUncertain);
   } else {
-    v_cmd *= std::max(0.0, std::cos(th));
-    const double denom = std::max(0.5, 1.0 - kappa * e);
-    w_cmd = v_cmd * (kappa * std::cos(th) / denom - k_lat * e - k_head * std::sin(th));
-    // At very low speed the feedback fades with v; keep a small heading correction.
-    if (v_cmd < 0.02) w_cmd += -0.5 * std::sin(th);
-    out.state = PlanState::kFollow;
-    if (out.corner_radius_m > 0 && path_.At(proj.s + v_ref * 0.5).curvature != 0.0) out.state = PlanState::kCorner;
-    if (SpeedLimitAt(proj.s, input.track, s_stop) < options_.cruise_speed_mps &&
-        std::abs(path_.At(proj.s).curvature) < 1e-6) {
-      out.state = PlanState::kUncertain;
+    // Speed profile: backward pass from the stop point (v = 0) to the vehicle.
+    const double ds = 0.02;
+    double v_profile = 0.0;
+    for (double s = s_stop; s >= proj.s - 1e-9; s -= ds) {
+      const double lim = SpeedLimitAt(s, input.track, s_stop);
+      v_profile = std::min(lim, std::sqrt(v_profile * v_profile + 2.0 * options_.max_decel_mps2 * std::min(ds, s_stop - s + ds)));
     }
-    if (input.track.end_known && to_stop < 1.0) out.state = PlanState::kApproachEnd;
+    double v_target = std::min(v_profile, std::sqrt(2.0 * options_.max_decel_mps2 * std::max(0.0, to_stop)));
+    v_target = std::min(v_target, SpeedLimitAt(proj.s, input.track, s_stop));
+
+    // Tracking law at the predicted pose.
+    const double v_ref = std::max(std::max(v_target, v_pred), 0.02);
+    const double length = std::max(options_.tracking_min_length_m, v_ref * options_.tracking_time_s);
+    const double k_lat = 1.0 / (length * length), k_head = 2.0 / length;
+    const double s_prev = proj.s + v_ref * options_.preview_time_s;
+    const double kappa = path_.MeanCurvature(proj.s, std::max(s_prev, proj.s + 0.005));
+    const double e = proj.lateral_m, th = proj.heading_error;
+    v_cmd = v_target;
+    if (std::abs(th) > DegToRad(options_.pivot_heading_error_deg)) {
+      // Facing away from the path: turn on the spot towards it first.
+      v_cmd = 0.0;
+      w_cmd = -std::copysign(std::min(options_.max_yaw_rate_rps, 2.0 * std::abs(th)), th);
+      out.state = PlanState::kPivot;
+    } else {
+      v_cmd *= std::max(0.0, std::cos(th));
+      const double denom = std::max(0.5, 1.0 - kappa * e);
+      w_cmd = v_cmd * (kappa * std::cos(th) / denom - k_lat * e - k_head * std::sin(th));
+      // At very low speed the feedback fades with v; keep a small heading correction.
+      if (v_cmd < 0.02) w_cmd += -0.5 * std::sin(th);
+      out.state = PlanState::kFollow;
+      if (out.corner_radius_m > 0 && path_.At(proj.s + v_ref * 0.5).curvature != 0.0) out.state = PlanState::kCorner;
+      if (SpeedLimitAt(proj.s, input.track, s_stop) < options_.cruise_speed_mps &&
+          std::abs(path_.At(proj.s).curvature) < 1e-6) {
+        out.state = PlanState::kUncertain;
+      }
+      if (input.track.end_known && to_stop < 1.0) out.state = PlanState::kApproachEnd;
+    }
+    if (corner_turn_.committed) out.state = PlanState::kCornerApproach;
   }
 
   // Limits.

@@ -15,6 +15,38 @@
 //    flight; at that pose a path-following law (curvature feed-forward with preview, plus lateral and
 //    heading feedback critically damped over a distance) gives the yaw rate.
 // 4. Limits: speed, acceleration, yaw rate and yaw acceleration as configured; never reversing.
+// 5. Blind acute corners. A corner turning by more than `pivot_corner_min_turn_deg` (an acute corner:
+//    the next leg runs back at less than 90 deg to the one driven) cannot be driven as a curve that
+//    keeps the track perceived: near the vertex the next leg lies beside or behind the vehicle,
+//    outside the cameras' ground footprint, and the stubs of tape still in view at the image's lower
+//    border are too short to be perceived as tape (no strip), so the track goes unseen for longer than
+//    the control loop's track-lost limit while the vehicle crawls round the tight arc. (The footprint
+//    check of 1. can pass such a corner: a few cm of each leg stay inside the footprint.) The
+//    dissertation's RMP is a differential drive and can turn on the spot (§8.12.4), so:
+//    a. the next leg is known from earlier sightings: during the approach, from further back, the
+//       cameras see the far part of the next leg (the track model keeps it: a corner tip too short to
+//       be perceived is no evidence against it, see TrackModelOptions::evidence_span_m);
+//    b. within `pivot_commit_m` of the vertex the planner commits to the manoeuvre: it brakes to a
+//       stop at the vertex, then turns on the spot towards the remembered leg's heading (updated
+//       with every new observation) at up to `pivot_rate_rps`;
+//    c. the leg is re-acquired when an observation newer than the start of the pivot has seen the
+//       model beyond the vertex; the pivot ends when the vehicle faces the leg (within
+//       `pivot_done_deg`) and it has been re-acquired, and following resumes;
+//    d. bounds: the whole manoeuvre (approach from the commit point, pivot) lasts at most
+//       `pivot_timeout_s`, the pivot turns at most the corner's turn plus `pivot_extra_deg`, and
+//       facing the remembered leg without having seen it again is a failure, as is the corner
+//       vanishing from the model (a view contradicted the leg): each stops the vehicle (kNoTrack) and
+//       ends the manoeuvre, which is not retried at that vertex; from then on the control loop's
+//       ordinary track-lost rule holds the vehicle until the track is seen again. Only while the
+//       manoeuvre is committed and within these bounds may the control loop accept an association
+//       older than its track-lost limit (corner_turn_active()); perception must stay fresh
+//       throughout, and the pivot itself never moves the axle midpoint (speed 0).
+//    e. it is only attempted when the next leg is known for `pivot_min_leg_m` beyond the vertex from
+//       repeated sightings (support >= min_support), so a spurious corner seen once is not turned.
+//    In the twin (rmp/app/track_spec, the default rig) the far part of the next leg of the 120 and 135
+//    deg corners is in view during the approach, so no exploratory (blind search) turn is needed; a
+//    corner whose next leg was never seen is not turned - the vehicle stops at the end of the known
+//    track as before.
 #pragma once
 
 #include <cstdint>
@@ -63,6 +95,15 @@ struct PlannerOptions {
   int min_support = 2;
   double uncertain_speed_fraction = 0.5;
   double stop_margin_m = 0.0;  // stop this far before the end of the known track
+  // Blind acute corners: stop at the vertex and turn on the spot (see 5. above).
+  bool pivot_at_blind_corners = true;
+  double pivot_corner_min_turn_deg = 100.0;
+  double pivot_commit_m = 0.35;
+  double pivot_min_leg_m = 0.3;  // the next leg must be known this far from repeated sightings
+  double pivot_rate_rps = 1.0;
+  double pivot_timeout_s = 6.0;
+  double pivot_extra_deg = 20.0;
+  double pivot_done_deg = 4.0;
 
   Status Check() const;
 };
@@ -72,11 +113,22 @@ struct PlannerInput {
   Pose2 odom_from_vehicle;  // current estimate
   double speed_mps = 0.0;   // measured
   double yaw_rate_rps = 0.0;
-  TrackAhead track;         // odometry frame
+  TrackAhead track;         // odometry frame (TrackAhead::seen_ns tells when each point was last seen)
   std::vector<std::vector<Vec2d>> footprints_m;  // per camera, vehicle frame (empty: no visibility check)
 };
 
-enum class PlanState { kFollow, kCorner, kUncertain, kApproachEnd, kAtEnd, kPivot, kNoTrack, kOffTrack };
+enum class PlanState {
+  kFollow,
+  kCorner,
+  kUncertain,
+  kApproachEnd,
+  kAtEnd,
+  kPivot,
+  kCornerApproach,  // committed to a blind acute corner: braking to a stop at its vertex
+  kCornerPivot,     // turning on the spot at its vertex towards the remembered next leg
+  kNoTrack,
+  kOffTrack,
+};
 const char* PlanStateName(PlanState state);
 
 struct PlanOutput {
@@ -105,6 +157,11 @@ class Planner {
 
   // The path of the last Plan() (odometry frame), for logs and plots.
   const SmoothPath& path() const { return path_; }
+  // Committed to a blind acute corner (5. above) and within its bounds as of the last Plan(): the
+  // track may go unseen for up to pivot_timeout_s from the commit.
+  bool corner_turn_active() const { return corner_turn_.committed; }
+  // Why the last blind-corner manoeuvre was abandoned (empty: none was).
+  const std::string& corner_turn_failure() const { return corner_turn_failure_; }
 
  private:
   Pose2 PredictPose(const PlannerInput& input, double* speed, double* yaw_rate) const;
@@ -114,6 +171,22 @@ class Planner {
                             const std::vector<std::vector<Vec2d>>& footprints) const;
   double SpeedLimitAt(double s, const TrackAhead& track, double s_stop) const;
 
+  // The blind-corner manoeuvre (5. above). Returns true when it decided the output (`out` filled).
+  bool BlindCorner(const PlannerInput& input, const Pose2& predicted, const PathProjection& proj, double v_pred,
+                   double* s_stop, double* v_cmd, double* w_cmd, PlanOutput* out);
+  void FailCornerTurn(const std::string& why);
+  // Arc length before which the path is not searched: the far end of corners already turned on the
+  // spot (the vehicle stands at their vertex, as close to the leg before as to the one after).
+  double TurnedCornerEnd() const;
+
+  struct CornerTurn {
+    bool committed = false;
+    bool pivoting = false;
+    int64_t commit_ns = 0, pivot_ns = 0;
+    Vec2d vertex = Vec2d::Zero();  // odometry frame
+    double turn_rad = 0.0;         // the corner's turn (signed, left positive)
+    double last_yaw = 0.0, turned_rad = 0.0;  // accumulated pivot angle
+  };
   struct Sent {
     int64_t t_ns;
     double speed, yaw_rate;
@@ -122,6 +195,10 @@ class Planner {
   std::deque<Sent> sent_;
   SmoothPath path_;
   std::map<std::pair<long, long>, std::pair<double, bool>> radius_cache_;  // corner vertex (cm grid) -> radius
+  CornerTurn corner_turn_;
+  std::string corner_turn_failure_;
+  std::vector<Vec2d> corners_failed_;  // vertices where the manoeuvre failed: not retried
+  std::vector<Vec2d> corners_turned_;  // vertices already turned (odometry frame)
 };
 
 }  // namespace idi::rmp
