@@ -99,10 +99,10 @@ int Main(int argc, char** argv) {
       if (oracle) cal = twin.TrueCalibration();
       workcell::ScanDevices d = twin.Devices();
       workcell::ScanOptions o = twin.SetupOptions();
-      if (stations == 4) o.azimuths_deg = {-45, -15, 15, 45};
+      if (stations == 4) o.azimuths_deg = {-35, -12, 12, 35};
       else if (stations != 3) {
         o.azimuths_deg.clear();
-        for (int k = 0; k < stations; ++k) o.azimuths_deg.push_back(stations == 1 ? 0.0 : -45.0 + 90.0 * k / (stations - 1));
+        for (int k = 0; k < stations; ++k) o.azimuths_deg.push_back(stations == 1 ? 0.0 : -35.0 + 70.0 * k / (stations - 1));
       }
       ++total;
       auto r = workcell::ScanAndPick(d, cal, o);
@@ -133,7 +133,9 @@ int Main(int argc, char** argv) {
       row.update({{"views", r->views.size()}, {"matched", t.matched_vertices}, {"true_vertices", t.true_vertices},
                   {"mean_mm", t.mean_vertex_error_mm}, {"max_mm", t.max_vertex_error_mm}, {"spurious", t.spurious_points},
                   {"object_points", t.object_points}, {"held", t.held}, {"placed", t.placed}, {"collisions", t.collisions},
-                  {"grasp", t.grasp_reason}, {"outcome", r->pick.outcome}, {"structure_ms", r->structure.total_ms}});
+                  {"grasp", t.grasp_reason}, {"outcome", r->pick.outcome}, {"structure_ms", r->structure.total_ms},
+                  {"cylinder_axis_error_mm", t.cylinder_axis_error_mm}, {"cylinder_radius_error_mm", t.cylinder_radius_error_mm},
+                  {"cylinder_top_error_mm", t.cylinder_top_error_mm}});
       all.push_back(row);
     }
     if (matched > 0) {

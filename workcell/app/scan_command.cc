@@ -158,6 +158,11 @@ Result<nlohmann::json> RunSimScan(const SimScanOptions& o, const ScanCalibration
                 {"collisions", t.collisions},
                 {"grasp", t.grasp_reason},
                 {"match_mm", t.match_mm}};
+  if (r.cylinder) {
+    j["truth"]["cylinder_axis_error_mm"] = t.cylinder_axis_error_mm;
+    j["truth"]["cylinder_radius_error_mm"] = t.cylinder_radius_error_mm;
+    j["truth"]["cylinder_top_error_mm"] = t.cylinder_top_error_mm;
+  }
   if (!o.out.empty()) IDI_RETURN_IF_ERROR(WriteFileAtomically((fs::path(o.out) / "report.json").string(), j.dump(2) + "\n"));
   spdlog::info("scan: {} corners of {} within {} mm (mean {:.3f}, max {:.3f} mm); pick: {} (twin: held {}, placed {})",
                t.matched_vertices, t.true_vertices, t.match_mm, t.mean_vertex_error_mm, t.max_vertex_error_mm,

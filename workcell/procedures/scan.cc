@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <random>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -69,6 +70,115 @@ cv::Mat ObjectRegionMask(const StructureView& v, const ScanOptions& o) {
   cv::Mat mask = cv::Mat::zeros(v.image.size(), CV_8UC1);
   cv::fillConvexPoly(mask, hull, cv::Scalar(255));
   return mask;
+}
+
+// A standing cylinder (no corners, so no IDI points) from its silhouettes: each view's outline edges are
+// EMPL lines whose back-projected planes are vertical and tangent to the cylinder, n.(x, y) - d = +-r
+// about its axis (x0, y0). RANSAC over triples of such planes and the signs, then least squares on the
+// inliers; the top is where the silhouettes' upper ends meet their tangent lines.
+struct CylinderFit {
+  Vec2d axis = Vec2d::Zero();
+  double radius = 0, top_z = 0;
+  int planes = 0;
+};
+std::optional<CylinderFit> FitCylinder(const std::vector<StructureView>& views, const std::vector<FeatureResult>& features,
+                                       const ScanOptions& o) {
+  struct Plane {
+    Vec2d n;
+    double d;
+    Vec3d centre;
+    std::array<Vec3d, 2> end_rays;
+  };
+  std::vector<Plane> planes;
+  for (std::size_t v = 0; v < views.size() && v < features.size(); ++v) {
+    const CameraModel& k = views[v].camera;
+    const Rigid3d world_from_cam = views[v].cam_from_world.Inverse();
+    auto ray = [&](const Vec2d& px) {
+      return Vec3d(world_from_cam.rotation * Vec3d((px.x() - k.cx()) / k.fx(), (px.y() - k.cy()) / k.fy(), 1.0));
+    };
+    for (const EmplLine& l : features[v].lines) {
+      if (l.length_px < 30) continue;
+      if (!views[v].roi.empty()) {
+        const Vec2d mid = 0.5 * (l.p1 + l.p2);
+        const int x = static_cast<int>(mid.x()), y = static_cast<int>(mid.y());
+        if (x < 0 || y < 0 || x >= views[v].roi.cols || y >= views[v].roi.rows || views[v].roi.at<uint8_t>(y, x) == 0) continue;
+      }
+      const Vec3d r1 = ray(l.p1), r2 = ray(l.p2);
+      Vec3d n = r1.cross(r2);
+      if (n.norm() < 1e-12) continue;
+      n.normalize();
+      if (std::abs(n.z()) > std::sin(DegToRad(2.0))) continue;  // not a vertical plane
+      const Vec2d nh = n.head<2>().normalized();
+      planes.push_back({nh, nh.dot(world_from_cam.translation.head<2>()), world_from_cam.translation, {r1, r2}});
+    }
+  }
+  if (planes.size() < 3) return std::nullopt;
+  const double tol = 1.5;
+  auto solve = [&](const std::vector<std::pair<int, double>>& set) -> std::optional<Vec3d> {
+    Eigen::MatrixXd a(set.size(), 3);
+    Eigen::VectorXd b(set.size());
+    for (std::size_t i = 0; i < set.size(); ++i) {
+      const Plane& p = planes[static_cast<std::size_t>(set[i].first)];
+      a.row(static_cast<Eigen::Index>(i)) << p.n.x(), p.n.y(), -set[i].second;
+      b(static_cast<Eigen::Index>(i)) = p.d;
+    }
+    const Vec3d x = a.colPivHouseholderQr().solve(b);
+    if (!x.allFinite() || x.z() < 5 || x.z() > 100) return std::nullopt;
+    if ((x.head<2>() - o.table_centre_world.head<2>()).norm() > o.object_region_radius_mm) return std::nullopt;
+    return x;
+  };
+  auto inliers = [&](const Vec3d& x) {
+    std::vector<std::pair<int, double>> in;
+    for (std::size_t i = 0; i < planes.size(); ++i) {
+      const double sd = planes[i].n.dot(x.head<2>()) - planes[i].d;
+      if (std::abs(std::abs(sd) - x.z()) < tol) in.emplace_back(static_cast<int>(i), sd > 0 ? 1.0 : -1.0);
+    }
+    return in;
+  };
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<std::size_t> pick(0, planes.size() - 1);
+  std::vector<std::pair<int, double>> best;
+  for (int it = 0; it < 400; ++it) {
+    const std::size_t i = pick(rng), j = pick(rng), k = pick(rng);
+    if (i == j || j == k || i == k) continue;
+    for (int signs = 0; signs < 8; ++signs) {
+      const auto x = solve({{static_cast<int>(i), signs & 1 ? 1.0 : -1.0},
+                            {static_cast<int>(j), signs & 2 ? 1.0 : -1.0},
+                            {static_cast<int>(k), signs & 4 ? 1.0 : -1.0}});
+      if (!x) continue;
+      auto in = inliers(*x);
+      if (in.size() > best.size()) best = std::move(in);
+    }
+  }
+  // Outlines from at least three views' worth of planes (two per view).
+  if (best.size() < 4) return std::nullopt;
+  const auto x = solve(best);
+  if (!x) return std::nullopt;
+  CylinderFit fit;
+  fit.axis = x->head<2>();
+  fit.radius = x->z();
+  fit.planes = static_cast<int>(best.size());
+  std::vector<double> tops;
+  for (const auto& [i, sign] : best) {
+    const Plane& p = planes[static_cast<std::size_t>(i)];
+    // The tangent line: vertical, through the axis point moved r along -sign n.
+    const Vec2d foot = fit.axis - sign * fit.radius * p.n;
+    double top = -1e9;
+    for (const Vec3d& r : p.end_rays) {
+      // Closest approach of the ray c + t r to the vertical line (foot, z): solve in the horizontal plane.
+      const Vec2d rh = r.head<2>();
+      if (rh.squaredNorm() < 1e-12) continue;
+      const double t = (foot - p.centre.head<2>()).dot(rh) / rh.squaredNorm();
+      top = std::max(top, p.centre.z() + t * r.z());
+    }
+    tops.push_back(top);
+  }
+  std::sort(tops.begin(), tops.end());
+  fit.top_z = tops[tops.size() / 2];
+  if (!(fit.top_z > o.table_centre_world.z() + 5 && fit.top_z < o.table_centre_world.z() + o.object_region_height_mm)) {
+    return std::nullopt;
+  }
+  return fit;
 }
 
 Status StopArms(ScanDevices& d) {
@@ -336,6 +446,25 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
       }
     }
   }
+  // No corners on the object: a cylinder, from its silhouettes. Its model for the grasp is the top and
+  // bottom rims (48 points each).
+  if (object.size() < 3) {
+    if (const auto cyl = FitCylinder(views, report.structure.features, o)) {
+      spdlog::info("scan: no corners; a cylinder from {} silhouette planes: axis ({:.1f}, {:.1f}), radius {:.1f} mm, top {:.1f} mm",
+                   cyl->planes, cyl->axis.x(), cyl->axis.y(), cyl->radius, cyl->top_z);
+      report.cylinder = true;
+      report.cylinder_axis_xy = cyl->axis;
+      report.cylinder_radius_mm = cyl->radius;
+      report.cylinder_top_z = cyl->top_z;
+      object.clear();
+      for (const double z : {o.table_centre_world.z(), cyl->top_z}) {
+        for (int k = 0; k < 48; ++k) {
+          const double a = 2 * kPi * k / 48.0;
+          object.emplace_back(cyl->axis.x() + cyl->radius * std::cos(a), cyl->axis.y() + cyl->radius * std::sin(a), z);
+        }
+      }
+    }
+  }
   report.reconstruction_s = Seconds() - t1;
   if (object.size() < 3) {
     return fail(NotFound(fmt::format("only {} reconstructed points on the table: no object found", object.size())),
@@ -352,6 +481,7 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
     const int ia = index_in_object[static_cast<std::size_t>(a)], ib = index_in_object[static_cast<std::size_t>(b)];
     if (ia >= 0 && ib >= 0) object_edges.emplace_back(ia, ib);
   }
+  if (report.cylinder) object_edges.clear();
   auto plan = PlanTopGrasp(object, o.table_centre_world.z(), o.grasp, object_edges);
   if (!plan.ok()) return fail(plan.status(), "grasp planning");
   report.grasp = *plan;
@@ -459,6 +589,11 @@ nlohmann::json ScanReportJson(const ScanReport& r) {
   for (const ScanView& v : r.views) {
     j["views"].push_back({{"name", v.view.name}, {"station", v.station}, {"rail1_mm", v.rail1_mm},
                           {"pan_deg", RadToDeg(v.pan_rad)}, {"tilt_deg", RadToDeg(v.tilt_rad)}});
+  }
+  if (r.cylinder) {
+    j["cylinder"] = {{"axis_xy_mm", {r.cylinder_axis_xy.x(), r.cylinder_axis_xy.y()}},
+                     {"radius_mm", r.cylinder_radius_mm},
+                     {"top_z_mm", r.cylinder_top_z}};
   }
   j["reprojection_rms_px"] = {{"before", r.structure.adjustment.initial_rms_px}, {"after", r.structure.adjustment.final_rms_px}};
   const Vec3d g = r.grasp.world_from_grasp.translation;

@@ -101,6 +101,10 @@ struct ScanReport {
   std::vector<ScanView> views;
   StructureResult structure;
   std::vector<int> object_points;  // indices into structure.model.points
+  // An object without corners, fitted as a standing cylinder from its silhouettes (object_points empty).
+  bool cylinder = false;
+  Vec2d cylinder_axis_xy = Vec2d::Zero();
+  double cylinder_radius_mm = 0, cylinder_top_z = 0;
   GraspPlan grasp;                 // world frame (R1)
   Rigid3d base2_from_grasp;        // robot 2's base frame at its rail position
   PickReport pick;

@@ -43,6 +43,20 @@ TEST(ScanTest, BoxIsReconstructedPickedAndPlaced) {
   EXPECT_EQ(t.collisions, 0);
 }
 
+// A cylinder has no corners: it is fitted from its silhouettes (vertical tangent planes) and picked.
+TEST(ScanTest, CylinderIsFittedFromItsSilhouettesAndPicked) {
+  ScanTwin twin(Twin(sim::ObjectKind::kCylinder, 1));
+  ScanDevices d = twin.Devices();
+  ScanOptions o = twin.SetupOptions();
+  auto r = ScanAndPick(d, twin.TrueCalibration(), o);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  ASSERT_TRUE(r->cylinder);
+  const ScanTruth t = twin.Evaluate(*r, o);
+  EXPECT_LT(t.cylinder_axis_error_mm, 5.0);
+  EXPECT_LT(t.cylinder_radius_error_mm, 5.0);
+  EXPECT_TRUE(t.held && t.placed) << t.grasp_reason << "; " << r->pick.outcome;
+}
+
 // The projection matrices follow the encoders: a view's camera is where the chain puts it for the true
 // model (the twin renders from the same chain), up to the rail's repeatability (0.1 mm sigma along it).
 TEST(ScanTest, ChainMatchesTheTwinsCamera) {

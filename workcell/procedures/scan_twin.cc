@@ -101,6 +101,12 @@ ScanTruth ScanTwin::Evaluate(const ScanReport& report, const ScanOptions& option
       if (best > t.match_mm) ++t.spurious_points;
     }
   }
+  if (report.cylinder && target_.shape.kind == sim::ObjectKind::kCylinder) {
+    const Vec3d base = target_.world_from_object.translation;
+    t.cylinder_axis_error_mm = (report.cylinder_axis_xy - base.head<2>()).norm();
+    t.cylinder_radius_error_mm = std::abs(report.cylinder_radius_mm - target_.shape.radius);
+    t.cylinder_top_error_mm = std::abs(report.cylinder_top_z - (base.z() + sim::ObjectHeight(target_.shape)));
+  }
   for (const sim::CellEvent& e : cell_->events()) {
     if (e.what.rfind("grasped ", 0) == 0) t.held = true;
   }

@@ -40,6 +40,8 @@ struct ScanTruth {
   int collisions = 0;
   std::string grasp_reason;
   double match_mm = 5.0;
+  // A cylinder (fitted from its silhouettes): errors of its axis, radius and top height.
+  double cylinder_axis_error_mm = -1, cylinder_radius_error_mm = -1, cylinder_top_error_mm = -1;
 };
 
 class ScanTwin {

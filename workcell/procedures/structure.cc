@@ -1,9 +1,12 @@
 #include "workcell/procedures/structure.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <optional>
+#include <thread>
 
 #include "shared/reconstruction/features_adapter.h"
 
@@ -93,13 +96,31 @@ Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& v
   StructureResult out;
   std::vector<AdaptedFeatures> adapted;
   auto t0 = std::chrono::steady_clock::now();
-  for (const StructureView& sv : views) {
-    cv::Mat gray = sv.image;
-    if (gray.channels() == 3) cv::cvtColor(sv.image, gray, cv::COLOR_BGR2GRAY);
-    IDI_ASSIGN_OR_RETURN(const FeatureResult f,
-                         DetectFeatures(gray, options.features, std::optional<CameraModel>(sv.camera)));
-    adapted.push_back(sv.roi.empty() ? FromFeatureResult(f) : KeepInsideRoi(FromFeatureResult(f), sv.roi, sv.camera));
-    out.features.push_back(f);
+  {
+    // The views' features are independent: one worker per core (the vision front end is pure).
+    std::vector<std::optional<Result<FeatureResult>>> found(views.size());
+    std::atomic<std::size_t> next{0};
+    auto work = [&] {
+      for (std::size_t v = next++; v < views.size(); v = next++) {
+        cv::Mat gray = views[v].image;
+        if (gray.channels() == 3) cv::cvtColor(views[v].image, gray, cv::COLOR_BGR2GRAY);
+        found[v] = DetectFeatures(gray, options.features, std::optional<CameraModel>(views[v].camera));
+      }
+    };
+    const std::size_t workers =
+        std::min<std::size_t>(views.size(), std::max(1u, std::min(8u, std::thread::hardware_concurrency())));
+    std::vector<std::thread> pool;
+    for (std::size_t w = 1; w < workers; ++w) pool.emplace_back(work);
+    work();
+    for (std::thread& t : pool) t.join();
+    for (std::size_t v = 0; v < views.size(); ++v) {
+      if (!found[v]->ok()) {
+        return found[v]->status().WithContext("view " + std::to_string(v) + " (" + views[v].name + ")");
+      }
+      const FeatureResult& f = **found[v];
+      adapted.push_back(views[v].roi.empty() ? FromFeatureResult(f) : KeepInsideRoi(FromFeatureResult(f), views[v].roi, views[v].camera));
+      out.features.push_back(f);
+    }
   }
   out.features_ms = MsSince(t0);
   t0 = std::chrono::steady_clock::now();
