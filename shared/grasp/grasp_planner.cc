@@ -112,6 +112,24 @@ std::vector<Vec2d> CrossSection(const std::vector<Vec3d>& points, const std::vec
   for (const Vec3d& p : points) {
     if (p.z() >= z - tol_mm) xy.push_back(p.head<2>());
   }
+  auto area = [](const std::vector<Vec2d>& h) {
+    double a = 0;
+    for (std::size_t i = 0; i < h.size(); ++i) a += Cross2(h[i], h[(i + 1) % h.size()]);
+    return 0.5 * a;
+  };
+  std::vector<Vec2d> hull = xy.size() >= 3 ? ConvexHull2d(xy) : std::vector<Vec2d>{};
+  if (hull.size() >= 3 && area(hull) > 100.0) return hull;
+  // Too few edges seen to outline the section (e.g. a prism whose sloped edges were not confirmed):
+  // for a convex object every segment between two of its points lies inside it, so where the segments
+  // between points below and above cross the plane is inside the section (an inner estimate again).
+  for (const Vec3d& a : points) {
+    for (const Vec3d& b : points) {
+      if (a.z() < z - tol_mm && b.z() > z + tol_mm) {
+        const double t = (z - a.z()) / (b.z() - a.z());
+        xy.push_back((a + t * (b - a)).head<2>());
+      }
+    }
+  }
   if (xy.size() < 3) return {};
   return ConvexHull2d(xy);
 }
