@@ -183,6 +183,28 @@ TEST(ClosedLoopTest, BridgesATrackCoveredForOneMetre) {
   ExpectNeverDroveOnStaleData(seen);
 }
 
+TEST(ClosedLoopTest, TurnsAnAcuteCornerOnTheSpot) {
+  // A 135 deg right corner: at the vertex the next leg lies behind the cameras' footprint. The vehicle
+  // stops there, turns on the spot towards the leg it saw on the approach, re-acquires it and drives
+  // it to the end - never on stale perception.
+  Observed seen;
+  auto res = RunSimulation(SmallRun("tape_width_m: 0.05\nspeed_mps: 0.5\npoints_m: [[0, 0], [1.8, 0], [0.5272, -1.2728]]\n", &seen));
+  ASSERT_TRUE(res.ok()) << res.status().ToString();
+  const RunReport& r = res->report;
+  EXPECT_TRUE(r.completed) << r.ToJson().dump();
+  EXPECT_LT(r.end_distance_m, 0.1);
+  EXPECT_LT(r.lateral_error_max_m, 0.06);
+  EXPECT_EQ(r.decisions.count("track-lost"), 0u) << r.ToJson().dump();
+  bool pivoted = false;
+  for (const TickRecord& t : seen.ticks) {
+    if (t.plan.state != PlanState::kCornerPivot || t.decision != Decision::kDrive) continue;
+    pivoted = true;
+    EXPECT_LT(t.speed_mps, 0.1);  // on the spot (braking the last mm at most)
+  }
+  EXPECT_TRUE(pivoted);
+  ExpectNeverDroveOnStaleData(seen);
+}
+
 TEST(ClosedLoopTest, ReplayingARecordingReproducesItsCommands) {
   const fs::path dir = fs::temp_directory_path() / ("idi_rmp_replay_" + std::to_string(::getpid()));
   fs::remove_all(dir);

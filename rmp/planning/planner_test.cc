@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <deque>
 
@@ -9,6 +10,7 @@
 #include "rmp/track/track_model.h"
 #include "rmp/vehicle/camera_rig.h"
 #include "shared/sim/vehicle/vehicle_twin.h"
+#include "shared/util/units.h"
 
 namespace idi::rmp {
 namespace {
@@ -236,6 +238,129 @@ TEST(PlannerClosedLoopTest, FollowsAnSCurveAtOneMetrePerSecond) {
   EXPECT_LT(r.end_distance, 0.1);
   EXPECT_LT(r.rms, 0.04);
   EXPECT_EQ(r.visible_fraction, 1.0);
+}
+
+// A 135 deg right corner at the origin as the track model would carry it after the approach: leg 1
+// along +x up to the vertex, leg 2 from it at -135 deg, every point seen repeatedly (support 8) by
+// observations up to `seen_ns`.
+TrackAhead AcuteCornerAhead(int64_t seen_ns) {
+  TrackAhead t;
+  const Vec2d d2(std::cos(-3 * kPi / 4), std::sin(-3 * kPi / 4));
+  for (double x = -1.0; x < -1e-9; x += 0.01) t.points.emplace_back(x, 0.0);
+  for (double a = 0.0; a <= 1.5 + 1e-9; a += 0.01) t.points.push_back(a * d2);
+  t.support.assign(t.points.size(), 8);
+  t.gap.assign(t.points.size(), false);
+  t.seen_ns.assign(t.points.size(), seen_ns);
+  t.length_m = 2.5;
+  return t;
+}
+
+struct PivotRun {
+  std::vector<PlanState> states;
+  Pose2 pose;
+  double max_speed_in_pivot = 0.0;
+  double max_speed_step_in_pivot = -1.0;  // largest increase of the commanded speed while pivoting
+  double max_vertex_distance_in_pivot = 0.0;
+  double turned_rad = 0.0;  // total |yaw change|
+  int64_t end_ns = 0;
+  bool was_active = false;
+};
+
+// Drives an ideal vehicle (it does what is commanded, at once) from 0.3 m before the vertex with the
+// track of AcuteCornerAhead; `seen_at_yaw_deg`: once the vehicle has turned this far, the next leg is
+// seen again (negative: never); `stuck`: the wheels slip, the vehicle never turns.
+PivotRun RunAcuteCorner(double seen_at_yaw_deg, bool stuck, Planner* planner) {
+  PivotRun r;
+  r.pose = {-0.3, 0.0, 0.0};
+  double v = 0.2, w = 0.0;
+  int64_t seen_ns = 0;
+  for (int64_t t = 0; t < 15'000 * kMs; t += 20 * kMs) {
+    if (seen_at_yaw_deg >= 0 && std::abs(r.pose.yaw) * 180 / kPi >= seen_at_yaw_deg) seen_ns = t;
+    PlannerInput in;
+    in.now_ns = t;
+    in.odom_from_vehicle = r.pose;
+    in.speed_mps = v;
+    in.yaw_rate_rps = w;
+    in.track = AcuteCornerAhead(seen_ns);
+    const PlanOutput out = planner->Plan(in);
+    planner->CommandSent(t, out.speed_mps, out.yaw_rate_rps);
+    r.states.push_back(out.state);
+    r.was_active = r.was_active || planner->corner_turn_active();
+    if (out.state == PlanState::kCornerPivot) {
+      r.max_speed_in_pivot = std::max(r.max_speed_in_pivot, out.speed_mps);
+      r.max_speed_step_in_pivot = std::max(r.max_speed_step_in_pivot, out.speed_mps - v);
+      r.max_vertex_distance_in_pivot = std::max(r.max_vertex_distance_in_pivot, r.pose.translation().norm());
+    }
+    r.end_ns = t;
+    if (out.state == PlanState::kNoTrack) break;
+    if (out.state == PlanState::kFollow && r.turned_rad > 2.0 && (r.pose.translation().norm() > 0.3)) break;
+    v = out.speed_mps;
+    w = stuck ? 0.0 : out.yaw_rate_rps;
+    const double yaw_before = r.pose.yaw;
+    r.pose = IntegrateUnicycle(r.pose, v, w, 0.02);
+    r.turned_rad += std::abs(WrapAngle(r.pose.yaw - yaw_before));
+  }
+  return r;
+}
+
+bool Visited(const PivotRun& r, PlanState s) { return std::find(r.states.begin(), r.states.end(), s) != r.states.end(); }
+
+TEST(PlannerCornerPivotTest, StopsAtTheVertexTurnsOnTheSpotAndFollowsTheReacquiredLeg) {
+  Planner planner;
+  const PivotRun r = RunAcuteCorner(60.0, false, &planner);
+  EXPECT_TRUE(Visited(r, PlanState::kCornerApproach));
+  EXPECT_TRUE(Visited(r, PlanState::kCornerPivot));
+  EXPECT_FALSE(Visited(r, PlanState::kNoTrack)) << planner.corner_turn_failure();
+  // On the spot: it arrives braking (the last mm at the deceleration limit), never speeds up while
+  // turning and stays at the vertex.
+  EXPECT_LT(r.max_speed_in_pivot, 0.1);
+  EXPECT_LE(r.max_speed_step_in_pivot, 0.0);
+  EXPECT_LT(r.max_vertex_distance_in_pivot, 0.03);
+  EXPECT_FALSE(planner.corner_turn_active());
+  EXPECT_TRUE(planner.corner_turn_failure().empty());
+  // Now driving down the next leg, on it.
+  EXPECT_EQ(r.states.back(), PlanState::kFollow);
+  const Vec2d d2(std::cos(-3 * kPi / 4), std::sin(-3 * kPi / 4));
+  EXPECT_GT(r.pose.translation().dot(d2), 0.3);
+  EXPECT_LT(std::abs(d2.x() * r.pose.y - d2.y() * r.pose.x), 0.03);
+  EXPECT_NEAR(WrapAngle(r.pose.yaw + 3 * kPi / 4), 0.0, 0.1);
+}
+
+TEST(PlannerCornerPivotTest, StopsWhenFacingTheRememberedLegWithoutSeeingIt) {
+  Planner planner;
+  const PivotRun r = RunAcuteCorner(-1.0, false, &planner);
+  ASSERT_TRUE(r.was_active);
+  EXPECT_EQ(r.states.back(), PlanState::kNoTrack);
+  EXPECT_FALSE(planner.corner_turn_active());
+  EXPECT_NE(planner.corner_turn_failure().find("without seeing it again"), std::string::npos);
+  // It turned to face the leg (135 deg), not beyond the bound, and stayed at the vertex.
+  EXPECT_NEAR(r.pose.yaw, -3 * kPi / 4, DegToRad(PlannerOptions{}.pivot_done_deg) + 0.02);
+  EXPECT_LE(r.turned_rad, 3 * kPi / 4 + DegToRad(PlannerOptions{}.pivot_extra_deg));
+  EXPECT_LT(r.pose.translation().norm(), 0.03);
+}
+
+TEST(PlannerCornerPivotTest, GivesUpWhenTheTurnTakesTooLong) {
+  Planner planner;
+  const PivotRun r = RunAcuteCorner(-1.0, true, &planner);
+  ASSERT_TRUE(r.was_active);
+  EXPECT_EQ(r.states.back(), PlanState::kNoTrack);
+  EXPECT_NE(planner.corner_turn_failure().find("pivot_timeout_s"), std::string::npos);
+  EXPECT_LE(static_cast<double>(r.end_ns) * 1e-9, PlannerOptions{}.pivot_timeout_s + 2.0);
+}
+
+TEST(PlannerCornerPivotTest, DoesNotPivotOnANextLegSeenOnlyOnce) {
+  Planner planner;
+  PlannerInput in;
+  in.odom_from_vehicle = {-0.1, 0.0, 0.0};
+  in.track = AcuteCornerAhead(0);
+  in.track.support.assign(in.track.support.size(), 1);
+  for (int i = 0; i < 20; ++i) {
+    in.now_ns = i * 20 * kMs;
+    const PlanOutput out = planner.Plan(in);
+    planner.CommandSent(in.now_ns, out.speed_mps, out.yaw_rate_rps);
+    EXPECT_NE(out.state, PlanState::kCornerPivot);
+    EXPECT_FALSE(planner.corner_turn_active());
+  }
 }
 
 }  // namespace

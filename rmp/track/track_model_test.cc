@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "rmp/track/synthetic_observation.h"
+#include "shared/util/units.h"
 
 namespace idi::rmp {
 namespace {
@@ -114,6 +117,50 @@ TEST(TrackModelTest, DropsAnExtensionTheCamerasNoLongerSee) {
   SyntheticTrack short_track{{{0, 0}, {2, 0}}, {}};
   for (int i = 1; i < 8; ++i) ASSERT_TRUE(model.Update(SyntheticObservation(short_track, pose, WideView(), i), pose).ok());
   EXPECT_NEAR(model.samples().back().xy.x(), 2.0, 0.02);
+}
+
+TEST(TrackModelTest, KeepsTheNextLegOfAnAcuteCornerWhenOnlyItsTipIsInView) {
+  // A 120 deg left corner at (2, 0). From the approach the cameras see the next leg's first metre or
+  // so; 3 cm before the vertex only the corner's tip (a few cm of each leg, less than evidence_span_m)
+  // is inside the view, too short for perception to report: blank views there are no evidence
+  // against the leg.
+  const double c = std::cos(2 * kPi / 3), s = std::sin(2 * kPi / 3);
+  SyntheticTrack track{{{0, 0}, {2, 0}, {2 + 2 * c, 2 * s}}, {}};
+  TrackModel model;
+  DriveStraight(&model, track, 0.0, 1.9);
+  const Vec2d d2(c, s);
+  auto leg_known = [&] {  // how far the model runs along the next leg
+    double known = 0;
+    for (const TrackSample& t : model.samples()) {
+      const Vec2d r = t.xy - Vec2d(2, 0);
+      if (std::abs(d2.x() * r.y() - d2.y() * r.x()) < 0.02) known = std::max(known, r.dot(d2));
+    }
+    return known;
+  };
+  ASSERT_GT(leg_known(), 1.0);
+  const Pose2 at_tip{1.97, 0, 0};
+  for (int i = 0; i < 10; ++i) {
+    TrackObservation blank;
+    blank.timestamp_ns = static_cast<int64_t>(3e9) + i;
+    blank.footprints_m = WideView();
+    ASSERT_TRUE(model.Update(blank, at_tip).ok());
+  }
+  EXPECT_GT(leg_known(), 1.0);
+}
+
+TEST(TrackModelTest, StillCutsTrackContradictedWellInsideTheView) {
+  // The same blank views with the whole next leg in view (a view from further back) do cut it.
+  const double c = std::cos(2 * kPi / 3), s = std::sin(2 * kPi / 3);
+  SyntheticTrack track{{{0, 0}, {2, 0}, {2 + 2 * c, 2 * s}}, {}};
+  TrackModel model;
+  DriveStraight(&model, track, 0.0, 0.5);
+  for (int i = 0; i < 10; ++i) {
+    TrackObservation blank;
+    blank.timestamp_ns = static_cast<int64_t>(3e9) + i;
+    blank.footprints_m = WideView();
+    ASSERT_TRUE(model.Update(blank, Pose2{0.5, 0, 0}).ok());
+  }
+  for (const TrackSample& t : model.samples()) EXPECT_LT(t.xy.x(), 0.75);
 }
 
 }  // namespace
