@@ -13,10 +13,10 @@
 
 #include "shared/kinematics/aiming.h"
 #include "shared/kinematics/biclops.h"
-#include "shared/kinematics/rtu.h"
 #include "shared/kinematics/rx130.h"
 #include "shared/util/atomic_file.h"
 #include "shared/util/units.h"
+#include "workcell/procedures/calibration_procedures.h"
 
 namespace idi::workcell {
 namespace {
@@ -29,9 +29,11 @@ double Seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
+// R1 from robot k's base at a rail position, with the calibrated rail directions and psi (eq. 3.4).
 Rigid3d WorldFromBase(const calib::ArmModel& model, int arm_index, const std::array<double, 4>& psi, double rail_mm) {
-  const Rigid3d rail_from_base = RailFromBase(model.rail.value(kPhiL), model.rail.value(kPhiM), rail_mm);
-  return arm_index == 0 ? rail_from_base : Rail1FromRail2(psi.data()) * rail_from_base;
+  CellSetup setup;
+  setup.psi = psi;
+  return NominalWorldFromBase(arm_index, model, setup, rail_mm);
 }
 
 // The head pose for a station: the TCF's camera diagonal (the nominal cameras look along the TCF's
@@ -405,7 +407,10 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
       if (!o.out_dir.empty()) {
         const fs::path file = fs::path(o.out_dir) / (sv.view.name + ".png");
         if (!cv::imwrite(file.string(), sv.view.image)) return IoError(file.string() + ": cannot write the image");
-        if (!sv.view.roi.empty()) cv::imwrite((fs::path(o.out_dir) / (sv.view.name + "_roi.png")).string(), sv.view.roi);
+        const fs::path roi_file = fs::path(o.out_dir) / (sv.view.name + "_roi.png");
+        if (!sv.view.roi.empty() && !cv::imwrite(roi_file.string(), sv.view.roi)) {
+          return IoError(roi_file.string() + ": cannot write the object region");
+        }
       }
       report.views.push_back(std::move(sv));
     }
