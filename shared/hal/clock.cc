@@ -1,7 +1,10 @@
 #include "shared/hal/clock.h"
 
+#include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <ctime>
+#include <thread>
 
 namespace idi::hal {
 
@@ -18,5 +21,20 @@ void MonotonicClock::SleepUntilNs(int64_t t_ns) {
   while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
   }
 }
+
+namespace {
+std::atomic<double> g_default_pace{0.0};
+}  // namespace
+
+void SimClock::SleepUntilNs(int64_t t_ns) {
+  if (t_ns <= now_ns_) return;
+  if (pace_ > 0) {
+    std::this_thread::sleep_for(std::chrono::nanoseconds(static_cast<int64_t>(pace_ * static_cast<double>(t_ns - now_ns_))));
+  }
+  now_ns_ = t_ns;
+}
+
+void SimClock::SetDefaultPace(double wall_per_sim) { g_default_pace = wall_per_sim > 0 ? wall_per_sim : 0.0; }
+double SimClock::DefaultPace() { return g_default_pace.load(); }
 
 }  // namespace idi::hal

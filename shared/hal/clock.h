@@ -23,18 +23,24 @@ class MonotonicClock final : public Clock {
   void SleepUntilNs(int64_t t_ns) override;
 };
 
-// Simulated time: starts at `start_ns`, moves only when advanced (or slept on).
+// Simulated time: starts at `start_ns`, moves only when advanced (or slept on). With a pace p > 0, a
+// sleep of dt simulated also waits p * dt on the wall clock (p = 1: the twin in real time, for an
+// operator watching it or a test that must catch it mid-move); 0, the default, never waits. New clocks
+// take the process-wide default pace (the service's `sim.pace`).
 class SimClock final : public Clock {
  public:
-  explicit SimClock(int64_t start_ns = 0) : now_ns_(start_ns) {}
+  explicit SimClock(int64_t start_ns = 0) : now_ns_(start_ns), pace_(DefaultPace()) {}
   int64_t NowNs() const override { return now_ns_; }
-  void SleepUntilNs(int64_t t_ns) override {
-    if (t_ns > now_ns_) now_ns_ = t_ns;
-  }
+  void SleepUntilNs(int64_t t_ns) override;
   void AdvanceNs(int64_t dt_ns) { now_ns_ += dt_ns; }
+  double pace() const { return pace_; }
+  void set_pace(double wall_per_sim) { pace_ = wall_per_sim > 0 ? wall_per_sim : 0.0; }
+  static void SetDefaultPace(double wall_per_sim);
+  static double DefaultPace();
 
  private:
   int64_t now_ns_;
+  double pace_;
 };
 
 inline constexpr int64_t kNsPerMs = 1'000'000;

@@ -142,7 +142,7 @@ std::array<double, 2> PtuTwin::TrueAngles(BiclopsSide side) {
 
 Result<std::vector<Vec2d>> PtuTwin::ObserveGeometric(BiclopsSide side) {
   const int image = images_++;
-  cell_.clock().AdvanceNs(40 * hal::kNsPerMs);  // one short-exposure frame
+  cell_.clock().SleepForNs(40 * hal::kNsPerMs);  // one short-exposure frame
   std::vector<Vec2d> spots;
   const auto point = true_point_in_base();
   if (!point || image == options_.missing_spot_image) return spots;
@@ -156,7 +156,7 @@ Result<std::vector<Vec2d>> PtuTwin::ObserveGeometric(BiclopsSide side) {
 
 Result<cv::Mat> PtuTwin::Render(BiclopsSide side, double exposure_scale) {
   const int image = images_++;
-  cell_.clock().AdvanceNs(40 * hal::kNsPerMs);
+  cell_.clock().SleepForNs(40 * hal::kNsPerMs);
   const calib::PtuCameraModel& truth = true_camera(side);
   const auto angles = TrueAngles(side);
   const Rigid3d base_from_cam = truth.BaseFromCamera(TrueTcf(), angles[0], angles[1]);

@@ -208,7 +208,7 @@ Result<Vec2d> WorkcellTwin::ObserveSpot(int k, int wall) {
     return NotFound("twin camera on the " + walls_[static_cast<std::size_t>(wall)].name + " wall: laser " +
                     std::to_string(k + 1) + "'s spot is not on this wall");
   }
-  clock_.AdvanceNs(40 * hal::kNsPerMs);  // one camera frame
+  clock_.SleepForNs(40 * hal::kNsPerMs);  // one camera frame
   const double s = options_.spot_sigma_mm;
   if (s == 0) return *spot;
   if (options_.spot_noise == SpotNoise::kUniform) {
@@ -232,7 +232,7 @@ Status SimArm::MoveJoints(const Joints& q_rad, const hal::MoveOptions& options) 
   double largest = 0;
   for (std::size_t i = 0; i < q_rad.size(); ++i) largest = std::max(largest, std::abs(q_rad[i] - a.q[i]));
   // Joint speed about 1 rad/s at full speed, plus settling.
-  twin_->clock_.AdvanceNs(hal::SecToNs(largest / options.speed_fraction + 0.2));
+  twin_->clock_.SleepForNs(hal::SecToNs(largest / options.speed_fraction + 0.2));
   a.q = twin_->options_.quantize_joints ? QuantizeToEncoders(q_rad) : q_rad;
   return Status::Ok();
 }
@@ -251,7 +251,7 @@ Status SimRail::MoveTo(double position_mm, const hal::MoveOptions& options) {
   }
   WorkcellTwin::ArmState& a = *twin_->arms_[static_cast<std::size_t>(k_)];
   const double speed_mmps = 500.0 * std::clamp(options.speed_fraction, 0.01, 1.0);
-  twin_->clock_.AdvanceNs(hal::SecToNs(std::abs(position_mm - a.rail_reading_mm) / speed_mmps + 0.5));
+  twin_->clock_.SleepForNs(hal::SecToNs(std::abs(position_mm - a.rail_reading_mm) / speed_mmps + 0.5));
   std::normal_distribution<double> n(0.0, 1.0);
   a.rail_true_mm = position_mm + twin_->options_.rail_repeatability_mm * n(twin_->rail_rng_);
   a.rail_reading_mm = position_mm;
