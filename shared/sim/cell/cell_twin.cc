@@ -56,7 +56,7 @@ class CellTwin::Camera final : public hal::CameraDevice {
                                                      o.keep_truth ? &truth : nullptr));
     if (o.keep_truth) twin_->truth_[Index()] = std::move(truth);
     const int64_t period_ns = hal::SecToNs(o.frame_period_s);
-    twin_->clock().AdvanceNs(period_ns);
+    twin_->clock().SleepForNs(period_ns);
     hal::Image image;
     image.timestamp_ns = twin_->clock().NowNs() - period_ns / 2;
     image.sequence = ++sequence_;
@@ -124,11 +124,12 @@ class CellTwin::Hand final : public hal::GripperDevice {
     const HandTruth& hand = twin_->options_.hand;
     const Rigid3d world_from_palm = twin_->TrueWorldFromPalm();
     std::array<std::optional<FingerContact>, 3> contact;
+    std::vector<Obstacle> obstacles;
     if (twin_->held_) {
       // Holding already: the fingers on the object stay there.
       for (const FingerContact& fc : twin_->last_grasp_.contacts) contact[static_cast<std::size_t>(fc.finger)] = fc;
     } else if (before.initialized) {
-      const std::vector<Obstacle> obstacles = twin_->ObstaclesInPalm(world_from_palm, false);
+      obstacles = twin_->ObstaclesInPalm(world_from_palm, false);
       for (int f = 0; f < 3; ++f) {
         contact[static_cast<std::size_t>(f)] =
             SweepFinger(hand, f, before.spread_rad, before.finger_rad[static_cast<std::size_t>(f)], obstacles);
@@ -164,8 +165,37 @@ class CellTwin::Hand final : public hal::GripperDevice {
                    twin_->last_grasp_.reason);
     } else {
       twin_->Event("grasp does not hold: " + twin_->last_grasp_.reason);
+      IDI_RETURN_IF_ERROR(SlipOut(hand, before.spread_rad, touching, obstacles));
     }
     return Status::Ok();
+  }
+  // A grasp that does not hold squeezes the object out of the hand: the fingers that pressed on it close
+  // on, past where it was, until they meet something else or close fully, so the finger encoders show
+  // the miss as a real hand's would. (The object is left where it stood; where it would be pushed to is
+  // not modelled.)
+  Status SlipOut(const HandTruth& hand, double spread_rad, const std::vector<FingerContact>& touching,
+                 const std::vector<Obstacle>& obstacles) {
+    std::vector<int> slipped;
+    for (const FingerContact& fc : touching) {
+      if (fc.obstacle >= 0) slipped.push_back(fc.obstacle);
+    }
+    if (slipped.empty()) return Status::Ok();
+    std::vector<Obstacle> rest;
+    for (const Obstacle& o : obstacles) {
+      if (std::find(slipped.begin(), slipped.end(), o.id) == slipped.end()) rest.push_back(o);
+    }
+    std::array<std::optional<double>, 3> stall;
+    for (const FingerContact& fc : touching) {
+      const auto f = static_cast<std::size_t>(fc.finger);
+      if (fc.obstacle < 0) {
+        stall[f] = fc.reading_rad;
+        continue;
+      }
+      const auto on = SweepFinger(hand, fc.finger, spread_rad, fc.reading_rad, rest);
+      if (on) stall[f] = on->reading_rad;
+    }
+    twin_->set_stall_(stall);
+    return twin_->hand_controller_->Close();
   }
   Status SetSpread(double spread_rad) override {
     IDI_RETURN_IF_ERROR(Attached());

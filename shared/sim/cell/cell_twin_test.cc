@@ -249,6 +249,38 @@ TEST(CellTwinTest, HandPicksLiftsAndPlacesABox) {
   EXPECT_EQ(rig.twin.collisions(), 0);
 }
 
+// A squeeze across a steep prism (its faces 45 deg from the closing direction, the friction cone 26.6
+// deg) does not hold: the object is pushed out and the fingers that pressed on it close on, so the
+// hand's encoders show the miss (a finger left at its contact would read as a grasp).
+TEST(CellTwinTest, GraspThatSlipsLetsTheFingersCloseOn) {
+  Rig rig;
+  const Vec3d top = rig.twin.options().table.top_centre_world;
+  CellObject prism;
+  prism.name = "prism";
+  prism.shape.kind = ObjectKind::kTriangularPrism;
+  prism.shape.size_x = 120;
+  prism.shape.size_y = 80;
+  prism.shape.size_z = 60;
+  prism.shape.apex_x = 0;
+  prism.world_from_object = Translation(top);
+  rig.twin.AddObject(prism);
+  ASSERT_TRUE(rig.twin.rail(1).MoveTo(2400, {}).ok());
+  ASSERT_TRUE(rig.twin.gripper().Initialize().ok());
+  ASSERT_TRUE(MoveHand(rig.twin, top + Vec3d(0, 0, 300)).ok());
+  ASSERT_TRUE(MoveHand(rig.twin, top + Vec3d(0, 0, 150)).ok());
+  ASSERT_TRUE(rig.twin.gripper().Close().ok());
+  EXPECT_FALSE(rig.twin.held_object().has_value()) << rig.twin.last_grasp().reason;
+  const std::vector<FingerContact>& contacts = rig.twin.last_grasp().contacts;
+  ASSERT_FALSE(contacts.empty()) << "the fingers met the prism";
+  const auto st = rig.twin.gripper().Read();
+  ASSERT_TRUE(st.ok());
+  for (const FingerContact& c : contacts) {
+    if (c.obstacle < 0) continue;
+    EXPECT_GT(st->finger_rad[static_cast<std::size_t>(c.finger)], c.reading_rad + DegToRad(5.0))
+        << "finger " << c.finger + 1 << " closed on past the prism it slipped from";
+  }
+}
+
 TEST(CellTwinTest, MissedGraspLeavesTheObjectAndDescendingIntoItIsACollision) {
   Rig rig;
   const Vec3d top = rig.twin.options().table.top_centre_world;
