@@ -159,6 +159,7 @@ Status RunCalibrateRobot(const RobotCommandOptions& o) {
     ao.distance_mm = o.distance_mm > 0 ? o.distance_mm : 1000.0;
     ao.per_set = o.readings / 2;
     ao.seed = o.seed;
+    ao.cancelled = o.cancelled;
     spdlog::info("digital twin (seed {}): calibrating robot {} by the {} method, {} readings", o.seed, o.arm, o.method,
                  2 * ao.per_set);
     IDI_ASSIGN_OR_RETURN(const RobotAcquisition acq, AcquireRobotData(dev, arm, SetupFromTwin(*twin), calib::ArmModel{}, ao));
@@ -254,13 +255,14 @@ namespace {
 
 // Robot k's model for the rail calibration: from its file, or (--sim) calibrated in the twin first.
 Result<calib::ArmModel> ArmForRtu(const std::string& file, bool sim, sim::WorkcellTwin* twin, int k, unsigned seed,
-                                  double spot_sigma_mm) {
+                                  double spot_sigma_mm, const CancelCheck& cancelled) {
   if (!file.empty() && (!sim || std::filesystem::exists(file))) return LoadRobotCalibration(file);
   if (!sim) return InvalidArgument(fmt::format("calibrate rtu: --robot{} FILE.yaml is required (or --sim)", k + 1));
   ArmDevices dev = DevicesFromTwin(*twin, k);
   RobotAcquisitionOptions ao;
   ao.seed = seed + static_cast<unsigned>(k) * 101u;
   ao.held_out = 0;
+  ao.cancelled = cancelled;
   spdlog::info("digital twin: calibrating robot {} first (chapter 4)", k + 1);
   IDI_ASSIGN_OR_RETURN(const RobotAcquisition acq, AcquireRobotData(dev, k, SetupFromTwin(*twin), calib::ArmModel{}, ao));
   calib::RobotCalibrationOptions co;
@@ -284,8 +286,8 @@ Result<calib::ArmModel> ArmForRtu(const std::string& file, bool sim, sim::Workce
 Status RunCalibrateRtu(const RtuCommandOptions& o) {
   std::unique_ptr<sim::WorkcellTwin> twin;
   if (o.sim) twin = std::make_unique<sim::WorkcellTwin>(TwinOptions(o.seed, o.spot_sigma_mm));
-  IDI_ASSIGN_OR_RETURN(const calib::ArmModel arm1, ArmForRtu(o.robot1, o.sim, twin.get(), 0, o.seed, o.spot_sigma_mm));
-  IDI_ASSIGN_OR_RETURN(const calib::ArmModel arm2, ArmForRtu(o.robot2, o.sim, twin.get(), 1, o.seed, o.spot_sigma_mm));
+  IDI_ASSIGN_OR_RETURN(const calib::ArmModel arm1, ArmForRtu(o.robot1, o.sim, twin.get(), 0, o.seed, o.spot_sigma_mm, o.cancelled));
+  IDI_ASSIGN_OR_RETURN(const calib::ArmModel arm2, ArmForRtu(o.robot2, o.sim, twin.get(), 1, o.seed, o.spot_sigma_mm, o.cancelled));
   std::vector<calib::RailReading> readings, held_out;
   nlohmann::json acquisition;
   if (o.sim) {
@@ -294,6 +296,7 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
     RailAcquisitionOptions ao;
     ao.readings = o.readings;
     ao.seed = o.seed;
+    ao.cancelled = o.cancelled;
     IDI_ASSIGN_OR_RETURN(const RailAcquisition acq, AcquireRailData(d1, d2, setup, arm1, arm2, ao));
     readings = acq.readings;
     acquisition = {{"points", acq.points_world.size()},
@@ -306,6 +309,7 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
     ho.points = 2;
     ho.walls = {0};
     ho.seed = o.seed + 17u;
+    ho.cancelled = o.cancelled;
     IDI_ASSIGN_OR_RETURN(const RailAcquisition held, AcquireRailData(d1, d2, setup, arm1, arm2, ho));
     // One held-out point: the readings of the first chosen point.
     for (std::size_t i = 0; i < held.readings.size(); i += 2) held_out.push_back(held.readings[i]);

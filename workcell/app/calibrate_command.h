@@ -2,6 +2,7 @@
 // calibration (chapter 5) from observation files, or the whole procedure in the digital twin (--sim).
 #pragma once
 
+#include <functional>
 #include <string>
 
 #include "shared/runtime/cli.h"
@@ -18,6 +19,7 @@ struct RobotCommandOptions {
   unsigned seed = 1;
   int arm = 1;
   int readings = 540;
+  std::function<bool()> cancelled;  // --sim: polled between readings (the service's stop)
 };
 
 // `calibrate rtu`: robot 1 and 2 from their files (with sim: calibrated in the twin when missing).
@@ -28,6 +30,7 @@ struct RtuCommandOptions {
   bool sim = false;
   unsigned seed = 1;
   int readings = 500;
+  std::function<bool()> cancelled;  // --sim: polled between readings (the service's stop)
 };
 
 Status RunCalibrateRobot(const RobotCommandOptions& options);

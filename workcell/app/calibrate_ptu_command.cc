@@ -104,6 +104,7 @@ Status RunInTwin(const CalibratePtuOptions& o) {
   po.calibration.estimate_distortion = o.distortion;
   po.calibration.robust_scale_px = o.robust_scale_px;
   po.seed = o.seed;
+  po.cancelled = o.cancelled;
   if (!o.start.empty()) {
     IDI_ASSIGN_OR_RETURN(const std::vector<calib::PtuCameraModel> start, LoadPtuCalibration(o.start));
     for (const auto& m : start) po.start[m.side == BiclopsSide::kLeft ? 0 : 1] = m;

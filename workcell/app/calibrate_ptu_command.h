@@ -3,6 +3,7 @@
 // Registered under the `calibrate` parent that `calibrate robot|rtu` use (created here if absent).
 #pragma once
 
+#include <functional>
 #include <string>
 
 #include "shared/runtime/cli.h"
@@ -27,6 +28,7 @@ struct CalibratePtuOptions {
   std::string lens_k1_k2;    // the twin lens' distortion "k1,k2"
   int poses = 60;
   int validation_poses = 60;
+  std::function<bool()> cancelled;  // --sim: polled between poses (the service's stop)
 };
 
 Status RunCalibratePtu(const CalibratePtuOptions& options);

@@ -142,6 +142,7 @@ JobSpec RobotJob(int arm, unsigned seed) {
     o.observations = (fs::path(ctx.run_dir) / "observations.csv").string();
     o.validate = (fs::path(ctx.run_dir) / "held_out.csv").string();
     o.plots = ctx.run_dir;
+    o.cancelled = [&ctx] { return ctx.cancelled(); };
     ctx.progress(0.05, "acquiring and solving");
     IDI_RETURN_IF_ERROR(RunCalibrateRobot(o));
     if (ctx.cancelled()) return Cancelled("cancelled by the operator; the calibration was not committed");
@@ -173,6 +174,7 @@ JobSpec RailJob(unsigned seed) {
     o.report = (fs::path(ctx.run_dir) / "calibration.json").string();
     o.observations = (fs::path(ctx.run_dir) / "observations.csv").string();
     o.plots = ctx.run_dir;
+    o.cancelled = [&ctx] { return ctx.cancelled(); };
     ctx.progress(0.05, "acquiring and solving");
     IDI_RETURN_IF_ERROR(RunCalibrateRtu(o));
     if (ctx.cancelled()) return Cancelled("cancelled by the operator; the calibration was not committed");
@@ -212,6 +214,7 @@ JobSpec PtuJob(unsigned seed) {
     o.observations = (fs::path(ctx.run_dir) / "observations.csv").string();
     o.validate = (fs::path(ctx.run_dir) / "held_out.csv").string();
     o.plots = ctx.run_dir;
+    o.cancelled = [&ctx] { return ctx.cancelled(); };
     ctx.progress(0.05, o.image ? "surveying and imaging the spot" : "surveying the spot");
     IDI_RETURN_IF_ERROR(RunCalibratePtu(o));
     if (ctx.cancelled()) return Cancelled("cancelled by the operator; the calibration was not committed");
@@ -377,6 +380,8 @@ JobSpec DayJob(unsigned seed) {
 }
 
 Result<Cell> MakeSimCell(const WorkcellConfig& config) {
+  hal::SimClock::SetDefaultPace(config.sim_pace);  // every twin the jobs make from here on
+  if (config.sim_pace > 0) spdlog::info("sim: paced at {} wall s per simulated s", config.sim_pace);
   Cell cell;
   cell.devices = std::make_unique<SimDeviceSet>(config.sim_seed);
   cell.jobs = {RobotJob(1, config.sim_seed), RobotJob(2, config.sim_seed), RailJob(config.sim_seed),

@@ -46,6 +46,11 @@ double ScaledCondition(const Eigen::MatrixXd& info) {
 
 }  // namespace
 
+Status CheckCancel(const CancelCheck& cancelled, const std::string& what) {
+  if (cancelled && cancelled()) return Cancelled(what + ": cancelled");
+  return Status::Ok();
+}
+
 ProgressLog::ProgressLog(std::string what) : what_(std::move(what)), start_s_(NowSeconds()) {}
 
 void ProgressLog::operator()(int done, int total) {
@@ -177,6 +182,7 @@ Result<RobotAcquisition> AcquireRobotData(ArmDevices& dev, int arm_index, const 
     for (int i : out.selection.chosen) {
       const calib::AimReading& c = pool.readings[static_cast<std::size_t>(i)];
       if (c.set != s + 1) continue;
+      IDI_RETURN_IF_ERROR(CheckCancel(o.cancelled, fmt::format("robot {}: acquisition", arm_index + 1)));
       const auto q = aim(base_from_wall[static_cast<std::size_t>(s)], targets[static_cast<std::size_t>(s)], c.q);
       if (!q.ok()) {
         ++out.loop_failures;
@@ -198,6 +204,7 @@ Result<RobotAcquisition> AcquireRobotData(ArmDevices& dev, int arm_index, const 
     IDI_ASSIGN_OR_RETURN(const std::vector<Joints> cand,
                          calib::PlanAimConfigurations(model.robot, model.laser, p, o.held_out, limits, po));
     for (const Joints& c : cand) {
+      IDI_RETURN_IF_ERROR(CheckCancel(o.cancelled, fmt::format("robot {}: held-out acquisition", arm_index + 1)));
       const auto q = aim(base_from_wall[1], target_h, c);
       if (q.ok()) {
         out.held_out.push_back(*q);
@@ -327,6 +334,7 @@ Result<RailAcquisition> AcquireRailData(ArmDevices& d1, ArmDevices& d2, const Ce
   IDI_RETURN_IF_ERROR(d2.laser->SetOn(true));
   ProgressLog progress("rail: readings");
   for (int i = 0; i < o.readings; ++i) {
+    IDI_RETURN_IF_ERROR(CheckCancel(o.cancelled, "rail: acquisition"));
     const Candidate& c = cands[static_cast<std::size_t>(chosen[static_cast<std::size_t>(i) % chosen.size()])];
     IDI_ASSIGN_OR_RETURN(const double r1, MoveRail(*d1.rail, rail(rng)));
     IDI_ASSIGN_OR_RETURN(const double r2, MoveRail(*d2.rail, rail(rng)));

@@ -31,6 +31,12 @@ struct CellSetup {
   std::array<double, 4> psi = calib::NominalPsi();
 };
 
+// Polled between readings of a long acquisition; true stops it with Cancelled (the operator's stop, a
+// signal). Empty: never cancelled.
+using CancelCheck = std::function<bool()>;
+// Cancelled("what: cancelled") when `cancelled` is set and says so, else Ok.
+Status CheckCancel(const CancelCheck& cancelled, const std::string& what);
+
 // Logs "what: done/total (percent), elapsed, remaining" at most every few seconds or 10 %.
 class ProgressLog {
  public:
@@ -61,6 +67,7 @@ struct RobotAcquisitionOptions {
   calib::PlanOptions plan;
   calib::AimLoopOptions loop;
   double max_failure_fraction = 0.1;
+  CancelCheck cancelled;
   Status Check() const;
 };
 
@@ -94,6 +101,7 @@ struct RailAcquisitionOptions {
   calib::PlanOptions plan;
   calib::AimLoopOptions loop;
   double max_failure_fraction = 0.1;
+  CancelCheck cancelled;
   Status Check() const;
 };
 

@@ -61,6 +61,33 @@ TEST(CalibrationProceduresTest, RobotAcquisitionAndCalibrationInTheTwin) {
   EXPECT_GT(before->mean_mm, 5.0 * after->mean_mm);
 }
 
+// The operator's stop (or a signal) during an acquisition ends it with Cancelled at the next reading,
+// not after hundreds more; the rail acquisition likewise.
+TEST(CalibrationProceduresTest, AcquisitionsStopWhenCancelled) {
+  sim::WorkcellTwin twin({});
+  ArmDevices dev = Devices(twin, 0);
+  RobotAcquisitionOptions o;
+  o.per_set = 75;
+  o.held_out = 30;
+  int polls = 0;
+  o.cancelled = [&polls] { return ++polls > 10; };
+  const auto acq = AcquireRobotData(dev, 0, TwinCellSetup(twin), calib::ArmModel{}, o);
+  ASSERT_FALSE(acq.ok());
+  EXPECT_EQ(acq.status().code(), StatusCode::kCancelled) << acq.status().ToString();
+  EXPECT_EQ(polls, 11) << "stopped at the first poll that said so";
+
+  ArmDevices d1 = Devices(twin, 0), d2 = Devices(twin, 1);
+  const calib::ArmModel nominal;
+  RailAcquisitionOptions ro;
+  ro.readings = 60;
+  polls = 0;
+  ro.cancelled = [&polls] { return ++polls > 3; };
+  const auto rail = AcquireRailData(d1, d2, TwinCellSetup(twin), nominal, nominal, ro);
+  ASSERT_FALSE(rail.ok());
+  EXPECT_EQ(rail.status().code(), StatusCode::kCancelled) << rail.status().ToString();
+  EXPECT_EQ(polls, 4);
+}
+
 TEST(CalibrationProceduresTest, RailAcquisitionChoosesPointsOnMoreThanOneWall) {
   sim::WorkcellTwinOptions to;
   to.seed = 3;

@@ -66,6 +66,7 @@ Status AcquirePtuPoses(PtuDevices& dev, const PtuProcedureOptions& o, const std:
                        int* missed) {
   ProgressLog progress(what);
   for (std::size_t i = 0; i < poses.size(); ++i) {
+    IDI_RETURN_IF_ERROR(CheckCancel(o.cancelled, what));
     IDI_RETURN_IF_ERROR(AcquirePtuPose(dev, o, poses[i], fmt::format("{}: pose {} of {}", what, i + 1, poses.size()),
                                        allow_missing, out, missed));
     progress(static_cast<int>(i) + 1, static_cast<int>(poses.size()));

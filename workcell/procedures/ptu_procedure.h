@@ -62,6 +62,7 @@ struct PtuProcedureOptions {
   hal::MoveOptions move;
   std::chrono::milliseconds ptu_timeout{20'000};
   uint64_t seed = 1;
+  std::function<bool()> cancelled;  // polled between poses; true stops with Cancelled
   Status Check() const;
 };
 

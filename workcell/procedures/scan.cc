@@ -320,7 +320,11 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
   };
   auto cancelled = [&]() -> Status {
     const Status stop = StopArms(d);
-    if (!stop.ok()) spdlog::error("scan: stopping the arms on cancel: {}", stop.ToString());
+    if (stop.ok()) {
+      spdlog::warn("scan: cancelled; both arms commanded to stop (the hand keeps what it holds)");
+    } else {
+      spdlog::error("scan: stopping the arms on cancel: {}", stop.ToString());
+    }
     return Cancelled("scan: cancelled by the operator");
   };
   if (!o.out_dir.empty()) {
@@ -549,7 +553,9 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
   IDI_RETURN_IF_ERROR(step(d.rail2->MoveTo(pick.rail2_mm, o.move), "moving rail 2"));
   IDI_RETURN_IF_ERROR(step(d.arm2->MoveJoints(qs[0], o.move), "approach"));
   if (IsCancelled(o)) return cancelled();
+  Progress(o, 0.75, "descending to the grasp");
   IDI_RETURN_IF_ERROR(step(d.arm2->MoveJoints(qs[1], o.move), "descending to the grasp"));
+  if (IsCancelled(o)) return cancelled();
   IDI_RETURN_IF_ERROR(step(d.hand->Close(), "closing the hand"));
   const double closed = DegToRad(c.hand.closed_deg);
   auto stalled = [&](const hal::GripperState& g) {
@@ -568,6 +574,8 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
     report.pick_s = Seconds() - t2;
     return report;
   }
+  if (IsCancelled(o)) return cancelled();
+  Progress(o, 0.8, "lifting");
   IDI_RETURN_IF_ERROR(step(d.arm2->MoveJoints(qs[2], o.move), "lifting"));
   hs = d.hand->Read();
   if (!hs.ok()) return fail(hs.status(), "reading the hand");
@@ -575,6 +583,7 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
   if (IsCancelled(o)) return cancelled();
   Progress(o, 0.85, "placing");
   IDI_RETURN_IF_ERROR(step(d.arm2->MoveJoints(qs[3], o.move), "carrying to the place position"));
+  if (IsCancelled(o)) return cancelled();
   IDI_RETURN_IF_ERROR(step(d.arm2->MoveJoints(qs[4], o.move), "putting down"));
   IDI_RETURN_IF_ERROR(step(d.hand->Open(), "opening the hand"));
   IDI_RETURN_IF_ERROR(step(d.arm2->MoveJoints(qs[5], o.move), "retreating"));

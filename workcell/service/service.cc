@@ -241,8 +241,20 @@ idi::Status WorkcellService::Run() {
   NotifyStopping();
   cancel_ = true;
   cv_.notify_all();
+  std::string running;
+  {
+    std::lock_guard<std::mutex> relock(mu_);
+    running = current_job_;
+  }
+  if (!running.empty()) {
+    // Stop the devices now, not when the job notices the cancel (a move in flight ends here).
+    const idi::Status now = devices_->StopAll();
+    spdlog::warn("service: shutting down during job '{}': devices {}", running,
+                 now.ok() ? std::string("commanded to stop") : "stop failed: " + now.message());
+  }
   if (worker_.joinable()) worker_.join();
-  (void)devices_->StopAll();
+  const idi::Status last = devices_->StopAll();
+  spdlog::info("service: devices {}", last.ok() ? std::string("stopped") : "stop failed: " + last.message());
   return ended;
 }
 

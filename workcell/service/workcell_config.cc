@@ -82,8 +82,12 @@ Result<WorkcellConfig> ParseWorkcellConfig(const std::string& text, const std::s
     }
   }
   if (root["sim"]) {
-    IDI_RETURN_IF_ERROR(OnlyKeys(root["sim"], {"seed", "day"}, where, "sim"));
+    IDI_RETURN_IF_ERROR(OnlyKeys(root["sim"], {"seed", "day", "pace"}, where, "sim"));
     IDI_RETURN_IF_ERROR(Read(root["sim"], "seed", where, "sim", &c.sim_seed));
+    IDI_RETURN_IF_ERROR(Read(root["sim"], "pace", where, "sim", &c.sim_pace));
+    if (!(c.sim_pace >= 0 && c.sim_pace <= 100)) {
+      return InvalidArgument(At(where, root["sim"]["pace"]) + ": 'sim.pace' must be in [0, 100] (wall seconds per simulated second)");
+    }
     if (const YAML::Node day = root["sim"]["day"]) {
       if (!day.IsSequence()) return InvalidArgument(At(where, day) + ": 'sim.day' must be a list of objects");
       for (const YAML::Node& n : day) {

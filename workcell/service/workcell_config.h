@@ -4,7 +4,8 @@
 //   state_dir: /var/lib/idi-workcell  # runs, recordings, the calibration in use
 //   control: {socket: /run/idi-workcell/control.sock, group: idi}
 //   calibration: {max_age_days: 30, recalibrate_when_stale: true}
-//   sim: {seed: 1, day: [box, prism, bracket]}   # day: objects to scan and pick once calibrated
+//   sim: {seed: 1, day: [box, prism, bracket], pace: 0}   # day: objects to scan and pick once calibrated;
+//                                     # pace: wall seconds per simulated second (0: as fast as it goes)
 //   exit_when_idle: false             # true: return when the queue has run dry (the simulated day, CI)
 //   hardware:
 //     arms:    [{name: arm1, host: 192.168.10.11, port: 5100}, {name: arm2, host: 192.168.10.12, port: 5100}]
@@ -47,6 +48,7 @@ struct WorkcellConfig {
   bool recalibrate_when_stale = true;
   unsigned sim_seed = 1;
   std::vector<std::string> sim_day;  // objects the sim cell scans and picks at start (the `day` job)
+  double sim_pace = 0;               // wall seconds per simulated second; 0: as fast as it goes
   bool exit_when_idle = false;
   std::vector<ArmEndpoint> arms;
   std::vector<SerialEndpoint> ptus;

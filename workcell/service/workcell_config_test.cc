@@ -34,9 +34,11 @@ TEST(WorkcellConfigTest, DefaultsToTheSimulation) {
 }
 
 TEST(WorkcellConfigTest, ReadsTheSimulatedDay) {
-  const auto c = ParseWorkcellConfig("backend: sim\nsim: {seed: 4, day: [box, bracket]}\nexit_when_idle: true\n", "d.yaml");
+  const auto c =
+      ParseWorkcellConfig("backend: sim\nsim: {seed: 4, day: [box, bracket], pace: 0.5}\nexit_when_idle: true\n", "d.yaml");
   ASSERT_TRUE(c.ok()) << c.status().ToString();
   EXPECT_EQ(c->sim_seed, 4u);
+  EXPECT_DOUBLE_EQ(c->sim_pace, 0.5);
   EXPECT_EQ(c->sim_day, (std::vector<std::string>{"box", "bracket"}));
   EXPECT_TRUE(c->exit_when_idle);
 }
@@ -58,6 +60,8 @@ TEST(WorkcellConfigTest, RejectsBadConfigsNamingFileLineAndKey) {
            {"backend: sim\nsim: {day: [box, teapot]}\n", "'sim.day' entries are box, prism, bracket or cylinder"},
            {"backend: sim\nsim: {day: box}\n", "'sim.day' must be a list"},
            {"backend: sim\nexit_when_idle: maybe\n", "exit_when_idle"},
+           {"backend: sim\nsim: {pace: -1}\n", "w.yaml:2: 'sim.pace' must be in [0, 100]"},
+           {"backend: sim\nsim: {pace: .nan}\n", "'sim.pace' must be in [0, 100]"},
        }) {
     const auto c = ParseWorkcellConfig(k.text, "w.yaml");
     ASSERT_FALSE(c.ok()) << k.text;
