@@ -527,6 +527,7 @@ void AddMesh(Prepared* prep, int mesh_index, const Cylinder* cylinder, int* next
     s.constant = s.texture == nullptr && !s.cylinder && s.spots.empty() && prep->spotlights.empty() &&
                  !prep->has_gradient;
     s.radiance = s.flat_irradiance * s.albedo;
+    s.smooth = !s.cylinder && prep->spotlights.empty() && (s.texture == nullptr || !(s.texture->tile_size > 0));
     s.mesh = mesh_index;
     s.face = static_cast<int>(f);
     const int surface_index = static_cast<int>(prep->surfaces.size());
@@ -681,6 +682,10 @@ Result<Prepared> Prepare(const Scene& scene, const CameraModel& camera, const Ri
   prep.cy = camera.cy();
   prep.near_clip = options.near_clip;
   prep.background = scene.background;
+  // Vignetting only lowers the gain, and the PSF is a normalised positive kernel, so an error of
+  // tolerance / exposure in radiance stays within the tolerance in DN.
+  prep.shading_tolerance =
+      options.exposure_dn > 0 ? options.shading_tolerance_dn / options.exposure_dn : options.shading_tolerance_dn;
   const Mat3d& r = cam_from_world.rotation;
   const Lighting& l = scene.lighting;
   prep.ambient = l.ambient;

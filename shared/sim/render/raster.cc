@@ -10,6 +10,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <thread>
 #include <vector>
 
@@ -520,11 +522,158 @@ class PixelIntegrator {
 
 namespace {
 
-// Tile rows first, first + stride, ... of the raster (every pixel depends only on the prepared scene,
-// so rows can be integrated by several threads at once with the same result).
-void RasterizeTileRows(const Prepared& prep, bool color, int first, int stride, cv::Mat& out) {
+// Shading of a tile covered by one smooth surface (Surface::smooth), interpolated bilinearly in pixel
+// index space between exactly shaded nodes, when that is within prep.shading_tolerance:
+//  - nodes on a 5 x 5 lattice (spacing 2 pixels in a full tile), shaded exactly;
+//  - its error estimated as half the largest difference, at the 16 nodes off the coarser 3 x 3
+//    lattice, between the exact value and the 3 x 3 lattice's interpolation (bilinear error shrinks
+//    with the square of the spacing, so half is still a safe margin);
+//  - only where the shading's finest detail that matters (texture octave wavelength) spans at least
+//    two node spacings, so that no feature can hide between the nodes.
+// Returns false (the caller shades every pixel) otherwise. `out` holds w x h values, row-major.
+class TileInterpolator {
+ public:
+  static constexpr double kErrorFactor = 0.5;
+
+  TileInterpolator(const Prepared& prep, bool color) : prep_(prep), color_(color) {}
+
+  bool Shade(const Surface& s, int i0, int j0, int w, int h, Vec3d* out) {
+    const PixelGrid& g = *prep_.grid;
+    if (!s.smooth || !(prep_.shading_tolerance > 0) || w < 5 || h < 5) return false;
+    s_ = &s;
+    i0_ = i0;
+    j0_ = j0;
+    const double tol = prep_.shading_tolerance;
+    xs_ = {0, w / 4, w / 2, w / 2 + (w - 1 - w / 2) / 2, w - 1};
+    ys_ = {0, h / 4, h / 2, h / 2 + (h - 1 - h / 2) / 2, h - 1};
+    int spacing = 0;
+    for (std::size_t k = 0; k + 1 < 5; ++k) spacing = std::max({spacing, xs_[k + 1] - xs_[k], ys_[k + 1] - ys_[k]});
+    // The 3 x 3 lattice (the even nodes).
+    for (int b = 0; b < 5; b += 2) {
+      for (int a = 0; a < 5; a += 2) At(a, b) = Exact(a, b);
+    }
+    // Texture detail finer than the nodes resolve must be negligible (a quarter of the tolerance).
+    for (const int b : {0, 4}) {
+      for (const int a : {0, 4}) {
+        const int i = i0 + xs_[static_cast<std::size_t>(a)], j = j0 + ys_[static_cast<std::size_t>(b)];
+        const Vec2d c = g.Center(i, j);
+        const Vec3d& v = At(a, b);
+        const double detail = ShadingDetailPx(prep_, s, c.x(), c.y(), g.Footprint(i, j),
+                                              color_ ? v.cwiseAbs().maxCoeff() : std::abs(Luma(v)), 0.25 * tol);
+        if (!(detail >= 2 * spacing)) return false;
+      }
+    }
+    double err = 0;
+    for (int b = 0; b < 5; ++b) {
+      for (int a = 0; a < 5; ++a) {
+        if (a % 2 == 0 && b % 2 == 0) continue;
+        At(a, b) = Exact(a, b);
+        // The 3 x 3 lattice's interpolation here.
+        const int a0 = std::min(a / 2 * 2, 2), b0 = std::min(b / 2 * 2, 2);
+        const double tx = Fraction(xs_, a0, a), ty = Fraction(ys_, b0, b);
+        const Vec3d interp = (1 - ty) * ((1 - tx) * At(a0, b0) + tx * At(a0 + 2, b0)) +
+                             ty * ((1 - tx) * At(a0, b0 + 2) + tx * At(a0 + 2, b0 + 2));
+        err = std::max(err, Diff(interp, At(a, b)));
+      }
+    }
+    if (kErrorFactor * err > tol) return false;
+    // Bilinear interpolation of the 5 x 5 lattice over the tile.
+    for (int y = 0, b = 0; y < h; ++y) {
+      while (b < 3 && y > ys_[static_cast<std::size_t>(b + 1)]) ++b;
+      const double ty = static_cast<double>(y - ys_[static_cast<std::size_t>(b)]) /
+                        (ys_[static_cast<std::size_t>(b + 1)] - ys_[static_cast<std::size_t>(b)]);
+      for (int x = 0, a = 0; x < w; ++x) {
+        while (a < 3 && x > xs_[static_cast<std::size_t>(a + 1)]) ++a;
+        const double tx = static_cast<double>(x - xs_[static_cast<std::size_t>(a)]) /
+                          (xs_[static_cast<std::size_t>(a + 1)] - xs_[static_cast<std::size_t>(a)]);
+        out[y * w + x] = (1 - ty) * ((1 - tx) * At(a, b) + tx * At(a + 1, b)) + ty * ((1 - tx) * At(a, b + 1) + tx * At(a + 1, b + 1));
+      }
+    }
+    return true;
+  }
+
+ private:
+  Vec3d& At(int a, int b) { return node_[static_cast<std::size_t>(b * 5 + a)]; }
+
+  // Position of lattice place k between places k0 and k0 + 2, in [0, 1].
+  static double Fraction(const std::array<int, 5>& xs, int k0, int k) {
+    return static_cast<double>(xs[static_cast<std::size_t>(k)] - xs[static_cast<std::size_t>(k0)]) /
+           (xs[static_cast<std::size_t>(k0 + 2)] - xs[static_cast<std::size_t>(k0)]);
+  }
+
+  Vec3d Exact(int a, int b) const {
+    const PixelGrid& g = *prep_.grid;
+    const int i = i0_ + xs_[static_cast<std::size_t>(a)], j = j0_ + ys_[static_cast<std::size_t>(b)];
+    const Vec2d c = g.Center(i, j);
+    return internal::Shade(prep_, *s_, c.x(), c.y(), g.Footprint(i, j));
+  }
+
+  double Diff(const Vec3d& a, const Vec3d& b) const {
+    return color_ ? (a - b).cwiseAbs().maxCoeff() : std::abs(Luma(a - b));
+  }
+
+  const Prepared& prep_;
+  bool color_;
+  const Surface* s_ = nullptr;
+  int i0_ = 0, j0_ = 0;
+  std::array<int, 5> xs_{}, ys_{};
+  std::array<Vec3d, 25> node_;
+};
+
+// The tile's candidates and its ideal bounding box as a region for PixelIntegrator::Classify.
+struct TileRegion {
+  const int* cand;
+  int n_cand;
+  Vec2d corners[4];
+  Vec2d centre;
+  double half_diag;
+  TileRegion(const Prepared& prep, std::size_t t) {
+    cand = prep.tile_items.data() + prep.tile_start[t];
+    n_cand = prep.tile_start[t + 1] - prep.tile_start[t];
+    const auto& box = prep.tile_box[t];
+    corners[0] = {box[0], box[1]};
+    corners[1] = {box[2], box[1]};
+    corners[2] = {box[2], box[3]};
+    corners[3] = {box[0], box[3]};
+    centre = Vec2d((box[0] + box[2]) / 2, (box[1] + box[3]) / 2);
+    half_diag = 0.5 * std::hypot(box[2] - box[0], box[3] - box[1]) * (1 + 1e-9);
+  }
+};
+
+// Tile rows first, first + stride, ...: for each tile, 1 + the group that covers it in front of
+// everything else (no edge inside it), or 0.
+void ClassifyTileRows(const Prepared& prep, int first, int stride, std::vector<int>* covered) {
+  PixelIntegrator integrator(prep, false);
+  for (int ty = first; ty < prep.tiles_y; ty += stride) {
+    for (int tx = 0; tx < prep.tiles_x; ++tx) {
+      const std::size_t t = static_cast<std::size_t>(ty * prep.tiles_x + tx);
+      const TileRegion r(prep, t);
+      const int front = r.n_cand > 0 ? integrator.Classify(r.centre, r.half_diag, r.cand, r.n_cand, r.corners, 4) : -1;
+      (*covered)[t] = front >= 0 ? 1 + integrator.FrontPiece(front).group : 0;
+    }
+  }
+}
+
+// Interpolated shading only in a tile whose 8 neighbours are covered by the same group: within a tile
+// of any edge the image is the per-pixel one (PSF included), so edges are exactly where per-pixel
+// shading puts them.
+bool NeighboursCovered(const Prepared& prep, const std::vector<int>& covered, int tx, int ty) {
+  const int own = covered[static_cast<std::size_t>(ty * prep.tiles_x + tx)];
+  if (own == 0) return false;
+  for (int y = std::max(0, ty - 1); y <= std::min(prep.tiles_y - 1, ty + 1); ++y) {
+    for (int x = std::max(0, tx - 1); x <= std::min(prep.tiles_x - 1, tx + 1); ++x) {
+      if (covered[static_cast<std::size_t>(y * prep.tiles_x + x)] != own) return false;
+    }
+  }
+  return true;
+}
+
+void RasterizeTileRows(const Prepared& prep, bool color, int first, int stride, const std::vector<int>& covered,
+                       cv::Mat& out) {
   const PixelGrid& g = *prep.grid;
   PixelIntegrator integrator(prep, false);
+  TileInterpolator interpolator(prep, color);
+  std::array<Vec3d, kTileSize * kTileSize> tile_values;
   auto store = [&](int i, int j, const Vec3d& rgb) {
     if (color) {
       out.at<cv::Vec3f>(j, i) =
@@ -548,15 +697,19 @@ void RasterizeTileRows(const Prepared& prep, bool color, int first, int stride, 
         continue;
       }
       // Whole tile covered by one group in front of everything else: centre shading, no per-pixel tests.
-      const auto& box = prep.tile_box[t];
-      const Vec2d corners[4] = {{box[0], box[1]}, {box[2], box[1]}, {box[2], box[3]}, {box[0], box[3]}};
-      const Vec2d centre((box[0] + box[2]) / 2, (box[1] + box[3]) / 2);
-      const double half_diag = 0.5 * std::hypot(box[2] - box[0], box[3] - box[1]) * (1 + 1e-9);
-      const int front = integrator.Classify(centre, half_diag, cand, n_cand, corners, 4);
+      const TileRegion region(prep, t);
+      const int front = integrator.Classify(region.centre, region.half_diag, cand, n_cand, region.corners, 4);
       if (front >= 0) {
         const bool one = integrator.GroupOfOne(front);
         const Surface& fs = prep.surfaces[static_cast<std::size_t>(integrator.FrontPiece(front).surface)];
-        const bool uniform = fs.constant && integrator.GroupShares(front, integrator.FrontPiece(front).surface);
+        const bool shares = integrator.GroupShares(front, integrator.FrontPiece(front).surface);
+        const bool uniform = fs.constant && shares;
+        if (!uniform && shares && NeighboursCovered(prep, covered, tx, ty) && interpolator.Shade(fs, i0, j0, i1 - i0, j1 - j0, tile_values.data())) {
+          for (int j = j0; j < j1; ++j) {
+            for (int i = i0; i < i1; ++i) store(i, j, tile_values[static_cast<std::size_t>((j - j0) * (i1 - i0) + (i - i0))]);
+          }
+          continue;
+        }
         for (int j = j0; j < j1; ++j) {
           for (int i = i0; i < i1; ++i) {
             if (uniform) {
@@ -584,18 +737,23 @@ void RasterizeRadiance(const Prepared& prep, bool color, int threads, cv::Mat* o
   const PixelGrid& g = *prep.grid;
   out_image->create(g.rows, g.cols, color ? CV_32FC3 : CV_32FC1);
   const int n = std::clamp(threads, 1, std::max(1, prep.tiles_y));
+  std::vector<int> covered(static_cast<std::size_t>(prep.tiles_x * prep.tiles_y), 0);
+  const bool interpolate = prep.shading_tolerance > 0;
   if (n == 1) {
-    RasterizeTileRows(prep, color, 0, 1, *out_image);
+    if (interpolate) ClassifyTileRows(prep, 0, 1, &covered);
+    RasterizeTileRows(prep, color, 0, 1, covered, *out_image);
     return;
   }
   // Interleaved tile rows balance the work (the costly rows - textured floor, many edges - cluster).
-  std::vector<std::thread> helpers;
-  helpers.reserve(static_cast<std::size_t>(n - 1));
-  for (int k = 1; k < n; ++k) {
-    helpers.emplace_back([&prep, color, k, n, out_image] { RasterizeTileRows(prep, color, k, n, *out_image); });
-  }
-  RasterizeTileRows(prep, color, 0, n, *out_image);
-  for (std::thread& h : helpers) h.join();
+  auto run = [&prep, n](auto&& rows) {
+    std::vector<std::thread> helpers;
+    helpers.reserve(static_cast<std::size_t>(n - 1));
+    for (int k = 1; k < n; ++k) helpers.emplace_back([&rows, k] { rows(k); });
+    rows(0);
+    for (std::thread& h : helpers) h.join();
+  };
+  if (interpolate) run([&](int k) { ClassifyTileRows(prep, k, n, &covered); });
+  run([&](int k) { RasterizeTileRows(prep, color, k, n, covered, *out_image); });
 }
 
 bool RasterizeSpots(const Prepared& prep, bool color, cv::Mat* out_image) {

@@ -71,6 +71,9 @@ struct Surface {
   std::vector<int> spots;         // laser spots close enough to this plane to light it
   bool constant = false;          // uniform radiance (no texture, spotlight, gradient, curvature)
   Vec3d radiance = Vec3d::Zero(); // that radiance
+  // Radiance varies smoothly over the face (no tiles with grout lines or per-tile steps, no
+  // spotlight cone, not a cylinder): a covered tile may interpolate it (see shading_tolerance).
+  bool smooth = false;
   int mesh = -1, face = -1;
 };
 
@@ -172,6 +175,9 @@ struct Prepared {
   std::vector<PreparedSpot> laser_spots;
   std::vector<SpotBox> spot_boxes;
   Vec3d background = Vec3d::Zero();
+  // Largest error (radiance units) allowed where a tile covered by one smooth surface interpolates
+  // its shading between exactly shaded nodes; 0 = shade every pixel (RenderOptions::shading_tolerance_dn).
+  double shading_tolerance = 0;
 
   // Raster and tiles.
   std::shared_ptr<const PixelGrid> grid;
@@ -202,6 +208,12 @@ double GaussLegendreWeight(int m, int i);
 // Radiance (linear RGB, relative) of a surface at an ideal pixel position; `footprint_px` is the size
 // of the area being integrated (texture filter width). Laser spots are not included.
 Vec3d Shade(const Prepared& prep, const Surface& surface, double x, double y, double footprint_px);
+// The finest detail of a surface's shading near an ideal pixel position: the shortest wavelength, in
+// pixels, of the texture there (grout width, or the finest noise octave that is not faded out), leaving
+// out the finest octaves that together change the radiance by at most `negligible` given the radiance
+// there (infinity for an untextured surface).
+double ShadingDetailPx(const Prepared& prep, const Surface& surface, double x, double y, double footprint_px,
+                       double radiance, double negligible);
 // The laser spots' emission (PSF included) at an ideal pixel position on a surface.
 Vec3d SpotEmission(const Prepared& prep, const Surface& surface, double x, double y);
 

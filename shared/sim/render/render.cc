@@ -26,6 +26,9 @@ Status RenderOptions::Check() const {
   if (!std::isfinite(truth_min_contrast_dn) || truth_min_contrast_dn < 0) {
     return InvalidArgument("render truth_min_contrast_dn must be >= 0");
   }
+  if (!std::isfinite(shading_tolerance_dn) || shading_tolerance_dn < 0 || shading_tolerance_dn > 1) {
+    return InvalidArgument("render shading_tolerance_dn must be in [0, 1], got " + std::to_string(shading_tolerance_dn));
+  }
   if (threads < 0 || threads > 64) return InvalidArgument("render threads must be in 0..64, got " + std::to_string(threads));
   return sensor.Check();
 }

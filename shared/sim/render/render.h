@@ -51,6 +51,12 @@ struct RenderOptions {
   double near_clip = 1e-3;     // scene length units; geometry closer to the camera plane is cut off
   // Ground truth: an edge counts as visible where its two sides differ by at least this much.
   double truth_min_contrast_dn = 1.0;
+  // Shading of a tile (8 x 8 pixels) covered by one smoothly shaded surface (value-noise texture,
+  // directional light, illumination gradient) is interpolated bilinearly between exactly shaded
+  // nodes 2-4 pixels apart when the estimated interpolation error (from the nodes themselves, and only
+  // where every texture octave spans at least two node spacings) stays below this many DN. Edges,
+  // tiles, grout lines, spotlights and cylinders are always shaded per pixel. 0 = every pixel exactly.
+  double shading_tolerance_dn = 0.25;
   // Threads integrating the pixels (the image is the same for any number); 0 = one per core, at most 4.
   int threads = 0;
   Status Check() const;

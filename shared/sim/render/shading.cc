@@ -3,6 +3,7 @@
 #include <cmath>
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <utility>
 
 #include "shared/sim/render/raster_internal.h"
@@ -147,6 +148,27 @@ Vec3d TexturedAlbedo(const TexturePlan& plan, const Vec3d& base, double u, doubl
   return albedo;
 }
 
+// A surface point's texture coordinates and the footprint of `footprint_px` pixels in texture units:
+// the derivative of the surface point along x and y, dp/dx = (e_x / fx) / w - ray (dw/dx) / w^2 (and
+// likewise for y), dotted with the texture axes. w = 1/z on the face's plane.
+struct TexturePoint {
+  double u, v, fu, fv;
+};
+TexturePoint TextureAt(const Prepared& prep, const Surface& s, const Vec3d& ray, double w, double footprint_px) {
+  const double inv_w = 1 / w;
+  const double dw_dx = s.normal.x() / (prep.fx * s.d) * inv_w * inv_w;
+  const double dw_dy = s.normal.y() / (prep.fy * s.d) * inv_w * inv_w;
+  const double tu_r = s.tex_u.dot(ray), tv_r = s.tex_v.dot(ray);
+  TexturePoint tp;
+  tp.fu = footprint_px * (std::abs(s.tex_u.x() * inv_w / prep.fx - tu_r * dw_dx) +
+                          std::abs(s.tex_u.y() * inv_w / prep.fy - tu_r * dw_dy));
+  tp.fv = footprint_px * (std::abs(s.tex_v.x() * inv_w / prep.fx - tv_r * dw_dx) +
+                          std::abs(s.tex_v.y() * inv_w / prep.fy - tv_r * dw_dy));
+  tp.u = tu_r * inv_w + s.tex_u0;
+  tp.v = tv_r * inv_w + s.tex_v0;
+  return tp;
+}
+
 }  // namespace
 
 Vec3d Shade(const Prepared& prep, const Surface& s, double x, double y, double footprint_px) {
@@ -192,20 +214,43 @@ Vec3d Shade(const Prepared& prep, const Surface& s, double x, double y, double f
   }
   Vec3d albedo = s.albedo;
   if (s.texture != nullptr) {
-    // Footprint of the area in texture units: derivative of the surface point along x and y,
-    // dp/dx = (e_x / fx) / w - ray (dw/dx) / w^2 (and likewise for y), dotted with the texture axes.
-    const double inv_w = 1 / w;
-    const double dw_dx = s.normal.x() / (prep.fx * s.d) * inv_w * inv_w;
-    const double dw_dy = s.normal.y() / (prep.fy * s.d) * inv_w * inv_w;
-    const double tu_r = s.tex_u.dot(ray), tv_r = s.tex_v.dot(ray);
-    const double fu = footprint_px * (std::abs(s.tex_u.x() * inv_w / prep.fx - tu_r * dw_dx) +
-                                      std::abs(s.tex_u.y() * inv_w / prep.fy - tu_r * dw_dy));
-    const double fv = footprint_px * (std::abs(s.tex_v.x() * inv_w / prep.fx - tv_r * dw_dx) +
-                                      std::abs(s.tex_v.y() * inv_w / prep.fy - tv_r * dw_dy));
-    albedo = TexturedAlbedo(prep.texture_plans[static_cast<std::size_t>(s.texture_plan)], albedo,
-                            tu_r * inv_w + s.tex_u0, tv_r * inv_w + s.tex_v0, fu, fv);
+    const TexturePoint tp = TextureAt(prep, s, ray, w, footprint_px);
+    albedo = TexturedAlbedo(prep.texture_plans[static_cast<std::size_t>(s.texture_plan)], albedo, tp.u, tp.v, tp.fu, tp.fv);
   }
   return irradiance * albedo;
+}
+
+double ShadingDetailPx(const Prepared& prep, const Surface& s, double x, double y, double footprint_px,
+                       double radiance, double negligible) {
+  if (s.texture == nullptr) return std::numeric_limits<double>::infinity();
+  const Vec3d ray = prep.Ray(x, y);
+  const TexturePoint tp = TextureAt(prep, s, ray, s.normal.dot(ray) / s.d, footprint_px);
+  const TexturePlan& plan = prep.texture_plans[static_cast<std::size_t>(s.texture_plan)];
+  // Texture units per pixel (an upper bound: fu and fv sum the absolute derivatives).
+  const double f = std::max(tp.fu, tp.fv);
+  const double per_px = std::max(f / std::max(footprint_px, 1e-12), 1e-300);
+  double finest = std::numeric_limits<double>::infinity();
+  if (plan.texture->tile_size > 0) finest = std::min(finest, plan.texture->grout_width / per_px);
+  const double noise = std::abs(plan.texture->noise_amplitude);
+  if (noise == 0) return finest;
+  // The radiance without the noise factor is at most radiance / (1 - noise), and octave o adds at most
+  // +-amplitude_o * fade_o of it: the finest octaves whose summed peak-to-peak stays below `negligible`
+  // are left out.
+  const double base = noise < 0.95 ? std::abs(radiance) / (1 - noise) : std::numeric_limits<double>::infinity();
+  std::array<double, 12> fade{};
+  int active = 0;
+  for (; active < plan.octaves; ++active) {
+    const std::size_t k = static_cast<std::size_t>(active);
+    fade[k] = std::clamp(2.0 - 4.0 * f * plan.inv_wavelength[k], 0.0, 1.0);
+    if (fade[k] <= 0) break;
+  }
+  double left_out = 0;
+  for (int o = active - 1; o >= 0; --o) {
+    const std::size_t k = static_cast<std::size_t>(o);
+    left_out += 2 * base * std::abs(plan.amplitude[k]) * fade[k];
+    if (left_out > negligible) return std::min(finest, 1 / (plan.inv_wavelength[k] * per_px));
+  }
+  return finest;
 }
 
 Vec3d SpotEmission(const Prepared& prep, const Surface& s, double x, double y) {
