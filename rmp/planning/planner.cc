@@ -343,6 +343,13 @@ bool Planner::TurnKeepsTrackInView(const std::vector<Vec2d>& vertices, std::size
   return true;
 }
 
+namespace {
+// A corner within this of one already decided is the same corner (the vertex moves by millimetres as
+// views are fused; corners of a real track are decimetres apart).
+constexpr double kCornerCacheTolerance_m = 0.05;
+constexpr double kCornerCacheTurnTolerance_deg = 8.0;
+}  // namespace
+
 std::vector<double> Planner::CornerRadii(const std::vector<Vec2d>& vertices, const Pose2& /*odom_from_vehicle*/,
                                          const std::vector<std::vector<Vec2d>>& footprints,
                                          std::vector<bool>* in_view) {
@@ -359,10 +366,18 @@ std::vector<double> Planner::CornerRadii(const std::vector<Vec2d>& vertices, con
       in_view->push_back(true);
       continue;
     }
-    const std::pair<long, long> key{std::lround(vertices[i].x() * 100), std::lround(vertices[i].y() * 100)};
-    if (auto it = radius_cache_.find(key); it != radius_cache_.end()) {
-      radii.push_back(it->second.first);
-      in_view->push_back(it->second.second);
+    const CachedCorner* cached = nullptr;
+    double nearest = kCornerCacheTolerance_m;
+    for (const CachedCorner& c : radius_cache_) {
+      const double d = (c.vertex - vertices[i]).norm();
+      if (d < nearest && std::abs(c.turn_rad - turn) < DegToRad(kCornerCacheTurnTolerance_deg)) {
+        nearest = d;
+        cached = &c;
+      }
+    }
+    if (cached != nullptr) {
+      radii.push_back(cached->radius_m);
+      in_view->push_back(cached->visible);
       continue;
     }
     double chosen = RadiusForCut(options_.corner_cut_m, turn);
@@ -380,7 +395,7 @@ std::vector<double> Planner::CornerRadii(const std::vector<Vec2d>& vertices, con
     }
     // Corners seen only near the horizon are not cached: the track beyond them may still grow.
     const bool complete = (vertices.back() - vertices[i]).norm() > options_.visibility_check_m + 0.2;
-    if (complete) radius_cache_[key] = {chosen, visible};
+    if (complete) radius_cache_.push_back({vertices[i], turn, chosen, visible});
     radii.push_back(chosen);
     in_view->push_back(visible);
   }

@@ -51,7 +51,6 @@
 
 #include <cstdint>
 #include <deque>
-#include <map>
 #include <string>
 #include <vector>
 
@@ -194,7 +193,16 @@ class Planner {
   PlannerOptions options_;
   std::deque<Sent> sent_;
   SmoothPath path_;
-  std::map<std::pair<long, long>, std::pair<double, bool>> radius_cache_;  // corner vertex (cm grid) -> radius
+  // Radii decided for corners (odometry frame), reused while the corner's vertex and turn stay within a
+  // few cm and degrees: fusion moves a vertex by millimetres from frame to frame, and re-deciding the
+  // radius as the vehicle reaches the corner would swap a tight turn for a wide one too late to follow.
+  struct CachedCorner {
+    Vec2d vertex;
+    double turn_rad;
+    double radius_m;
+    bool visible;
+  };
+  std::vector<CachedCorner> radius_cache_;
   CornerTurn corner_turn_;
   std::string corner_turn_failure_;
   std::vector<Vec2d> corners_failed_;  // vertices where the manoeuvre failed: not retried

@@ -255,6 +255,45 @@ TrackAhead AcuteCornerAhead(int64_t seen_ns) {
   return t;
 }
 
+// A right-angled right corner at (vertex_x, 0): leg 1 along +x from x = -1, leg 2 along -y for 2 m,
+// seen repeatedly.
+TrackAhead RightCornerAhead(double vertex_x) {
+  TrackAhead t;
+  for (double x = -1.0; x < vertex_x - 1e-9; x += 0.01) t.points.emplace_back(x, 0.0);
+  for (double y = 0.0; y >= -2.0 - 1e-9; y -= 0.01) t.points.emplace_back(vertex_x, y);
+  t.support.assign(t.points.size(), 8);
+  t.gap.assign(t.points.size(), false);
+  t.seen_ns.assign(t.points.size(), 0);
+  t.length_m = vertex_x + 3.0;
+  return t;
+}
+
+// The turn decided for a corner is kept while fusion moves its vertex by a centimetre or two (it did
+// so only within one cm grid cell: at the zigzag's third corner a 1 cm shift near the vertex re-decided
+// the turn, swapping the tight arc for the widest one too late, 11 cm off the tape); a corner that
+// really moved is decided again.
+TEST(PlannerTest, KeepsTheTurnDecidedForACornerWhileItsVertexJitters) {
+  Planner planner;
+  auto plan = [&](double vertex_x, double vehicle_x, const std::vector<std::vector<Vec2d>>& footprints) {
+    PlannerInput in;
+    in.odom_from_vehicle = {vehicle_x, 0.0, 0.0};
+    in.speed_mps = 0.3;
+    in.track = RightCornerAhead(vertex_x);
+    in.footprints_m = footprints;
+    return planner.Plan(in);
+  };
+  const PlanOutput first = plan(2.004, 0.5, RigFootprints());
+  ASSERT_GT(first.corner_radius_m, 0.0);
+  EXPECT_TRUE(first.corner_in_view);
+  // Views that would no longer show the track through that turn (a footprint far off the track).
+  const std::vector<std::vector<Vec2d>> elsewhere = {{{50, 50}, {51, 50}, {51, 51}, {50, 51}}};
+  const PlanOutput jittered = plan(2.016, 1.6, elsewhere);
+  EXPECT_DOUBLE_EQ(jittered.corner_radius_m, first.corner_radius_m);
+  EXPECT_TRUE(jittered.corner_in_view) << "the decision made from afar holds";
+  const PlanOutput moved = plan(2.3, 1.6, elsewhere);
+  EXPECT_FALSE(moved.corner_in_view) << "a corner 30 cm away is a new corner, decided afresh";
+}
+
 struct PivotRun {
   std::vector<PlanState> states;
   Pose2 pose;

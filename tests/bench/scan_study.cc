@@ -7,7 +7,8 @@
 // twin's truth: corners found within 5 mm, their error, spurious object points, grasp held / object
 // placed, collisions, and the time of features + correspondence + triangulation + bundle adjustment.
 //
-// Usage: scan_study [--calibration DIR | --oracle] [--scenes 10] [--seed 1] [--stations 3] [--json FILE]
+// Usage: scan_study [--calibration DIR | --oracle] [--scenes 10] [--seed 1] [--stations 3] [--object NAME]
+//                   [--json FILE]
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -32,7 +33,7 @@ double Median(std::vector<double> v) {
 }
 
 int Main(int argc, char** argv) {
-  std::string cal_dir, json_out;
+  std::string cal_dir, json_out, only;
   bool oracle = false;
   int scenes = 10, stations = 3;
   unsigned seed = 1;
@@ -51,8 +52,9 @@ int Main(int argc, char** argv) {
     else if (a == "--seed") seed = static_cast<unsigned>(std::atoi(next().c_str()));
     else if (a == "--stations") stations = std::atoi(next().c_str());
     else if (a == "--json") json_out = next();
+    else if (a == "--object") only = next();
     else {
-      fmt::print(stderr, "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--seed S] [--stations K] [--json FILE]\n");
+      fmt::print(stderr, "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--seed S] [--stations K] [--object box|prism|bracket|cylinder] [--json FILE]\n");
       return 2;
     }
   }
@@ -86,6 +88,7 @@ int Main(int argc, char** argv) {
   fmt::print("{:9} {:>6} {:>8} {:>9} {:>9} {:>9} {:>7} {:>7} {:>9}\n", "object", "scenes", "corners", "mean mm",
              "max mm", "spurious", "held", "placed", "ms (med)");
   for (const auto& [name, kind] : kinds) {
+    if (!only.empty() && only != name) continue;
     int found = 0, possible = 0, spurious = 0, objpts = 0, held = 0, placed = 0;
     double sum = 0, worst = 0;
     int matched = 0;
