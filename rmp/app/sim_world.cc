@@ -5,6 +5,7 @@
 #include <deque>
 #include <functional>
 #include <limits>
+#include <thread>
 
 #include "shared/util/units.h"
 
@@ -85,30 +86,53 @@ class TwinCameras final : public sim::SimProcess, public FrameSource {
     const SimFaults& f = world_->options_.faults;
     const double t_s = static_cast<double>(t_ns) * 1e-9;
     std::uniform_real_distribution<double> u(0.0, 1.0);
+    // Which cameras deliver, and which of those render a new image (faults decided in camera order).
+    hal::Image img[2];
+    bool deliver[2] = {false, false}, render[2] = {false, false};
     for (int k = 0; k < 2; ++k) {
       const std::string name = k == 0 ? "left" : "right";
-      const RigCamera& cam = k == 0 ? rig_.left : rig_.right;
       ++seq_[k];
       if (name == f.dead_camera && t_s >= f.dead_from_s && t_s < f.dead_to_s) continue;
       if (f.drop_probability > 0 && u(rng_) < f.drop_probability) continue;
-      hal::Image img;
-      img.camera = name;
-      img.sequence = seq_[k];
-      img.timestamp_ns = t_ns;
+      deliver[k] = true;
+      img[k].camera = name;
+      img[k].sequence = seq_[k];
+      img[k].timestamp_ns = t_ns;
       if (name == f.frozen_camera && t_s >= f.frozen_from_s && t_s < f.frozen_to_s && !last_[k].empty()) {
-        img.pixels = last_[k];  // the same buffer again
+        img[k].pixels = last_[k];  // the same buffer again
       } else {
-        sim::RenderOptions ro = world_->options_.render;
-        ro.seed = world_->options_.seed * 1000003 + seq_[k] * 2 + static_cast<uint64_t>(k);
-        auto rendered = sim::RenderScene(scene_, cam.intrinsics, (world_from_vehicle * cam.vehicle_from_camera).Inverse(), ro);
-        if (!rendered.ok()) {
-          error_ = rendered.status().WithContext("twin camera " + name);
+        render[k] = true;
+      }
+    }
+    // The two cameras render at once, one thread each (the image does not depend on the threads).
+    Result<cv::Mat> rendered[2] = {cv::Mat(), cv::Mat()};
+    auto render_camera = [&](int k) {
+      const RigCamera& cam = k == 0 ? rig_.left : rig_.right;
+      sim::RenderOptions ro = world_->options_.render;
+      ro.seed = world_->options_.seed * 1000003 + seq_[k] * 2 + static_cast<uint64_t>(k);
+      if (render[0] && render[1] && ro.threads == 0) ro.threads = 1;
+      rendered[k] = sim::RenderScene(scene_, cam.intrinsics, (world_from_vehicle * cam.vehicle_from_camera).Inverse(), ro);
+    };
+    if (render[0] && render[1]) {
+      std::thread right([&] { render_camera(1); });
+      render_camera(0);
+      right.join();
+    } else {
+      for (int k = 0; k < 2; ++k) {
+        if (render[k]) render_camera(k);
+      }
+    }
+    for (int k = 0; k < 2; ++k) {
+      if (!deliver[k]) continue;
+      if (render[k]) {
+        if (!rendered[k].ok()) {
+          error_ = rendered[k].status().WithContext(std::string("twin camera ") + (k == 0 ? "left" : "right"));
           return;
         }
-        img.pixels = *rendered;
-        last_[k] = img.pixels;
+        img[k].pixels = *rendered[k];
+        last_[k] = img[k].pixels;
       }
-      pending_.emplace_back(t_ns + latency_ns_, std::move(img));
+      pending_.emplace_back(t_ns + latency_ns_, std::move(img[k]));
     }
     if (world_->following_) CountVisibility(world_from_vehicle);
   }
