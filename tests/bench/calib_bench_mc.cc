@@ -11,7 +11,8 @@
 //
 // Usage: calib_bench_mc [trials=20] [robot|rail|joint|all] [readings=540]
 // Environment: IDI_MC_SCENARIO=precise|encoder|realistic (robot: only that one), IDI_MC_POOL (candidates
-// per reading), IDI_MC_NEAR (planning cone, deg), IDI_MC_DOPT=1 (D-optimal selection only),
+// per reading), IDI_MC_NEAR (planning cone, deg), IDI_MC_DOPT=1 (D-optimal selection only), IDI_MC_LOOP_TOL
+// (the aiming loop's tolerance, mm),
 // IDI_MC_WALL_MIN / IDI_MC_WALL_MAX (wall distances, mm).
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -125,6 +126,7 @@ Result<RobotTrial> RunRobotTrial(const Scenario& sc, unsigned seed, int readings
   ao.per_set = readings / 2;
   ao.seed = seed;
   ao.loop.tolerance_mm = sc.loop_tolerance;
+  if (const char* e = std::getenv("IDI_MC_LOOP_TOL")) ao.loop.tolerance_mm = std::atof(e);
   if (const char* e = std::getenv("IDI_MC_POOL")) ao.pool_factor = std::atof(e);
   if (const char* e = std::getenv("IDI_MC_NEAR")) ao.plan.near_deg = std::atof(e);
   if (const char* e = std::getenv("IDI_MC_DOPT")) ao.a_optimal = std::atoi(e) == 0;

@@ -8,7 +8,7 @@
 // placed, collisions, and the time of features + correspondence + triangulation + bundle adjustment.
 //
 // Usage: scan_study [--calibration DIR | --oracle] [--scenes 10] [--seed 1] [--stations 3] [--object NAME]
-//                   [--json FILE]
+//                   [--elevation DEG] [--distance MM] [--json FILE]
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -36,6 +36,7 @@ int Main(int argc, char** argv) {
   std::string cal_dir, json_out, only;
   bool oracle = false;
   int scenes = 10, stations = 3;
+  double elevation_deg = 0, distance_mm = 0;
   unsigned seed = 1;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -53,8 +54,10 @@ int Main(int argc, char** argv) {
     else if (a == "--stations") stations = std::atoi(next().c_str());
     else if (a == "--json") json_out = next();
     else if (a == "--object") only = next();
+    else if (a == "--elevation") elevation_deg = std::atof(next().c_str());
+    else if (a == "--distance") distance_mm = std::atof(next().c_str());
     else {
-      fmt::print(stderr, "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--seed S] [--stations K] [--object box|prism|bracket|cylinder] [--json FILE]\n");
+      fmt::print(stderr, "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--seed S] [--stations K] [--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--json FILE]\n");
       return 2;
     }
   }
@@ -102,6 +105,8 @@ int Main(int argc, char** argv) {
       if (oracle) cal = twin.TrueCalibration();
       workcell::ScanDevices d = twin.Devices();
       workcell::ScanOptions o = twin.SetupOptions();
+      if (elevation_deg > 0) o.elevation_deg = elevation_deg;
+      if (distance_mm > 0) o.view_distance_mm = distance_mm;
       if (stations == 4) o.azimuths_deg = {-35, -12, 12, 35};
       else if (stations != 3) {
         o.azimuths_deg.clear();
