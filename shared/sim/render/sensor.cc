@@ -76,6 +76,12 @@ class NoiseRng {
   uint64_t s_[4];
 };
 
+// std::nearbyint for 0 <= v <= 255 under the default rounding mode (to nearest, ties to even), without
+// the library call: adding 1.5 * 2^52 rounds away every fraction bit (IEEE double arithmetic, which
+// the compiler keeps without -ffast-math). Clamping before rounding gives the same as after, since 0
+// and 255 are integers.
+inline double RoundHalfEven(double v) { return (v + 6755399441055744.0) - 6755399441055744.0; }
+
 }  // namespace
 
 Status SensorOptions::Check() const {
@@ -121,7 +127,7 @@ cv::Mat ApplySensor(const cv::Mat& irradiance_dn, const SensorOptions& sensor, u
         if (read) v += sensor.read_noise_dn * rng.Normal();
       }
       v += sensor.black_level_dn;
-      o[k] = static_cast<uint8_t>(std::clamp(std::nearbyint(v), 0.0, 255.0));
+      o[k] = static_cast<uint8_t>(RoundHalfEven(std::clamp(v, 0.0, 255.0)));
     }
   }
   return out;
