@@ -66,7 +66,7 @@ BENCHMARK(BM_WorkcellFrameWithTruth)->Unit(benchmark::kMillisecond)->UseRealTime
 BENCHMARK(BM_WorkcellFrameColour)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // The vehicle twin: the left camera of the default rig at the start of the standard track.
-void TrackFrame(benchmark::State& state, int threads) {
+void TrackFrame(benchmark::State& state, int threads, double shading_tolerance_dn = -1) {
   const rmp::RmpConfig config = rmp::DefaultRmpConfig();
   const rmp::TrackSpec track = rmp::StandardTrack();
   rmp::TrackSceneOptions so = config.sim.scene;
@@ -82,6 +82,7 @@ void TrackFrame(benchmark::State& state, int threads) {
   const Rigid3d cam_from_world = (world_from_vehicle * cam.vehicle_from_camera).Inverse();
   sim::RenderOptions ro = config.sim.render;
   ro.threads = threads;
+  if (shading_tolerance_dn >= 0) ro.shading_tolerance_dn = shading_tolerance_dn;
   uint64_t seed = 1;
   for (auto _ : state) {
     ro.seed = seed++;
@@ -97,6 +98,9 @@ void BM_TrackFrame(benchmark::State& s) { TrackFrame(s, 0); }
 void BM_TrackFrameOneThread(benchmark::State& s) { TrackFrame(s, 1); }
 BENCHMARK(BM_TrackFrame)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_TrackFrameOneThread)->Unit(benchmark::kMillisecond)->UseRealTime();
+// Every pixel shaded exactly (no interpolation of smooth shading in covered tiles).
+void BM_TrackFrameOneThreadExactShading(benchmark::State& s) { TrackFrame(s, 1, 0.0); }
+BENCHMARK(BM_TrackFrameOneThreadExactShading)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 }  // namespace idi
