@@ -144,9 +144,8 @@ std::string WriteConfig(const fs::path& dir, const std::string& name, const std:
 TEST(ServiceKillTest, KillDuringACalibrationKeepsThePreviousOneAndARestartResumes) {
   const fs::path dir = MakeTempDir("kill_calibration");
   const std::string socket = (dir / "ctl.sock").string(), log = (dir / "service.log").string();
-  // Paced (a simulated second takes 0.5 ms; a robot calibration is about 4 h of simulated moves) so that
-  // it lasts seconds on any machine and the
-  // kill surely lands inside one.
+  // Paced (a simulated second takes 0.5 ms; a robot calibration is about 4 h of simulated moves) so
+  // that a calibration lasts seconds on any machine and the kill surely lands inside one.
   const std::string config = WriteConfig(dir, "cell.yaml", "sim: {seed: 3, pace: 0.0005}\n");
   nlohmann::json st;
   std::map<std::string, std::string> before;
