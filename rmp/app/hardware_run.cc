@@ -10,16 +10,19 @@
 #include "shared/drivers/socketcan/socketcan_bus.h"
 #include "shared/drivers/v4l2/v4l2_camera.h"
 #endif
+#if IDI_RMP_LIBCAMERA
+#include "shared/drivers/libcamera/libcamera_camera.h"
+#endif
 
 namespace idi::rmp {
 
 #if IDI_RMP_HARDWARE
 namespace {
 
-// The two V4L2 cameras: every frame each has ready, without waiting.
-class V4l2Frames final : public FrameSource {
+// The two cameras (V4L2 or libcamera): every frame each has ready, without waiting.
+class CameraFrames final : public FrameSource {
  public:
-  explicit V4l2Frames(std::vector<std::unique_ptr<drivers::V4l2Camera>> cams) : cams_(std::move(cams)) {}
+  explicit CameraFrames(std::vector<std::unique_ptr<hal::CameraDevice>> cams) : cams_(std::move(cams)) {}
   Result<std::vector<hal::Image>> Collect(int64_t /*now_ns*/) override {
     std::vector<hal::Image> out;
     for (auto& cam : cams_) {
@@ -36,8 +39,28 @@ class V4l2Frames final : public FrameSource {
   }
 
  private:
-  std::vector<std::unique_ptr<drivers::V4l2Camera>> cams_;
+  std::vector<std::unique_ptr<hal::CameraDevice>> cams_;
 };
+
+// The camera device a config entry names (its backend was checked by RmpConfig::Check).
+Result<std::unique_ptr<hal::CameraDevice>> MakeCamera(const CameraDeviceConfig& c) {
+  if (c.backend == "libcamera") {
+#if IDI_RMP_LIBCAMERA
+    drivers::LibcameraCameraOptions lo;
+    lo.camera = c.device;
+    lo.name = c.name;
+    lo.frame_rate_hz = c.frame_rate_hz;
+    return std::unique_ptr<hal::CameraDevice>(std::make_unique<drivers::LibcameraCamera>(lo));
+#else
+    return FailedPrecondition("camera " + c.name + ": this idi-rmp was built without libcamera");
+#endif
+  }
+  drivers::V4l2CameraOptions vo;
+  vo.device = c.device;
+  vo.name = c.name;
+  vo.frame_rate_hz = c.frame_rate_hz;
+  return std::unique_ptr<hal::CameraDevice>(std::make_unique<drivers::V4l2Camera>(vo));
+}
 
 }  // namespace
 
@@ -47,13 +70,9 @@ Result<RunReport> RunHardware(const HardwareRunOptions& o) {
   drivers::SocketCanOptions can_options;
   can_options.interface = config.can_interface;
   IDI_ASSIGN_OR_RETURN(std::unique_ptr<drivers::SocketCanBus> bus, drivers::SocketCanBus::Open(can_options, &clock));
-  std::vector<std::unique_ptr<drivers::V4l2Camera>> cams;
+  std::vector<std::unique_ptr<hal::CameraDevice>> cams;
   for (const CameraDeviceConfig& c : config.cameras) {
-    drivers::V4l2CameraOptions vo;
-    vo.device = c.device;
-    vo.name = c.name;
-    vo.frame_rate_hz = c.frame_rate_hz;
-    auto cam = std::make_unique<drivers::V4l2Camera>(vo);
+    IDI_ASSIGN_OR_RETURN(std::unique_ptr<hal::CameraDevice> cam, MakeCamera(c));
     hal::CameraSettings s;
     s.width = c.width;
     s.height = c.height;
@@ -61,7 +80,7 @@ Result<RunReport> RunHardware(const HardwareRunOptions& o) {
     IDI_RETURN_IF_ERROR(cam->Start(s).WithContext("camera " + c.name));
     cams.push_back(std::move(cam));
   }
-  V4l2Frames frames(std::move(cams));
+  CameraFrames frames(std::move(cams));
   IDI_ASSIGN_OR_RETURN(std::unique_ptr<TrackPerception> perception, TrackPerception::Create(config.rig, config.perception));
   IDI_ASSIGN_OR_RETURN(std::unique_ptr<RmpDriver> driver, RmpDriver::Create(bus.get(), &clock, config.driver));
   drivers::SocketCanBus* raw_bus = bus.get();

@@ -1,4 +1,5 @@
-// `idi-rmp run` on the vehicle: the RMP on SocketCAN, two V4L2 cameras, the monotonic clock.
+// `idi-rmp run` on the vehicle: the RMP on SocketCAN, two cameras (V4L2, or libcamera when built with
+// it; hardware.cameras[].backend), the monotonic clock.
 #pragma once
 
 #include <atomic>

@@ -132,6 +132,14 @@ Status ReadRigCamera(const YAML::Node& n, const std::string& source, const std::
 
 }  // namespace
 
+bool LibcameraBuilt() {
+#if IDI_RMP_LIBCAMERA
+  return true;
+#else
+  return false;
+#endif
+}
+
 const char* BackendName(Backend b) {
   switch (b) {
     case Backend::kSim: return "sim";
@@ -171,9 +179,29 @@ Status RmpConfig::Check() const {
   if (backend == Backend::kHardware) {
     if (can_interface.empty()) return InvalidArgument(source + ": hardware.can.interface is empty");
     bool left = false, right = false;
-    for (const CameraDeviceConfig& c : cameras) {
-      if (c.backend != "v4l2") return InvalidArgument(source + ": camera '" + c.name + "': backend '" + c.backend + "' is not built (v4l2)");
-      if (c.device.empty()) return InvalidArgument(source + ": camera '" + c.name + "' has no device");
+    for (std::size_t i = 0; i < cameras.size(); ++i) {
+      const CameraDeviceConfig& c = cameras[i];
+      const std::string what = source + ": hardware.cameras: camera '" + c.name + "'";
+      if (c.backend == "v4l2") {
+        if (c.device.empty()) return InvalidArgument(what + " has no device (a capture node such as /dev/video0)");
+      } else if (c.backend == "libcamera") {
+        if (!LibcameraBuilt()) {
+          return InvalidArgument(what + ": backend 'libcamera': this idi-rmp was built without libcamera " +
+                                 "(install libcamera-dev and rebuild, or use backend: v4l2)");
+        }
+        if (c.device.empty()) return InvalidArgument(what + " has no device (a libcamera camera id, or its index 0, 1, ...)");
+      } else {
+        return InvalidArgument(what + ": backend '" + c.backend + "' must be v4l2 or libcamera");
+      }
+      if (c.width <= 0 || c.height <= 0) {
+        return InvalidArgument(what + ": width and height must be positive, got " + std::to_string(c.width) + "x" + std::to_string(c.height));
+      }
+      if (!(c.frame_rate_hz >= 0 && c.frame_rate_hz <= 1000)) return InvalidArgument(what + ": frame_rate_hz must be in [0, 1000]");
+      for (std::size_t j = 0; j < i; ++j) {
+        if (cameras[j].backend == c.backend && cameras[j].device == c.device) {
+          return InvalidArgument(what + " uses the same " + c.backend + " device '" + c.device + "' as camera '" + cameras[j].name + "'");
+        }
+      }
       left = left || c.name == "left";
       right = right || c.name == "right";
     }

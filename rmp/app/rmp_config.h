@@ -14,7 +14,10 @@
 //              command_latency_s, response_time_constant_s, keep_track_in_view}
 //   control:  {rate_hz, max_perception_age_s, status_timeout_s, track_lost_s, finish_hold_s, max_run_s}
 //   rmp:      {model, velocity_scale, accel_scale, turn_scale, min_base_battery_v, balance}
-//   hardware: {can: {interface}, cameras: [{name, backend: v4l2, device, width, height, frame_rate_hz}]}
+//   hardware: {can: {interface}, cameras: [{name, backend: v4l2 | libcamera, device, width, height, frame_rate_hz}]}
+//             device: v4l2: a capture node (/dev/video0, better /dev/v4l/by-id/...); libcamera: a camera
+//             id as `cam --list` prints it, or its index 0, 1, ... in libcamera's list. libcamera is
+//             optional at build time: a build without it refuses `backend: libcamera` at load.
 //   sim:      {track, real_time, camera_rate_hz, camera_latency_s, seed, calibration_pitch_error_deg,
 //              calibration_height_error_m, left_wheel_scale_error, right_wheel_scale_error,
 //              slip_noise_m_per_sqrt_m, faults: {...}}
@@ -39,8 +42,8 @@ const char* BackendName(Backend b);
 
 struct CameraDeviceConfig {
   std::string name;             // "left" / "right"
-  std::string backend = "v4l2";
-  std::string device;           // /dev/video0, /dev/v4l/by-id/...
+  std::string backend = "v4l2";  // "v4l2" or "libcamera" (when built with it: LibcameraBuilt())
+  std::string device;           // v4l2: /dev/video0, /dev/v4l/by-id/...; libcamera: a camera id or index
   int width = 640, height = 480;
   double frame_rate_hz = 0.0;   // 0: the device's default
 };
@@ -69,6 +72,9 @@ struct RmpConfig {
 
   Status Check() const;
 };
+
+// Whether this idi-rmp was built with the libcamera camera backend (pkg-config found libcamera).
+bool LibcameraBuilt();
 
 // The fixed stereo cameras of the default vehicle: 640x480, 90 deg wide lenses, 1.2 m above the
 // ground over the wheel axle, 0.3 m apart, looking 55 deg down - they see from just behind the axle

@@ -73,5 +73,49 @@ TEST(RmpConfigTest, RefusesMistakesNamingFileLineAndKey) {
   EXPECT_EQ(LoadRmpConfig("/nonexistent/rmp.yaml").status().code(), StatusCode::kNotFound);
 }
 
+// hardware.cameras with the given entries (and the CAN interface the hardware backend needs).
+Result<RmpConfig> HardwareCameras(const std::string& left, const std::string& right) {
+  return ParseRmpConfig("backend: hardware\nhardware:\n  cameras:\n    - " + left + "\n    - " + right + "\n", "c.yaml");
+}
+
+TEST(RmpConfigTest, CameraBackendsAreCheckedAtLoad) {
+  auto unknown = HardwareCameras("{name: left, backend: gstreamer, device: x}", "{name: right, device: /dev/video1}");
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_NE(unknown.status().message().find("backend 'gstreamer' must be v4l2 or libcamera"), std::string::npos)
+      << unknown.status().message();
+  auto same = HardwareCameras("{name: left, device: /dev/video0}", "{name: right, device: /dev/video0}");
+  ASSERT_FALSE(same.ok());
+  EXPECT_NE(same.status().message().find("same v4l2 device '/dev/video0' as camera 'left'"), std::string::npos)
+      << same.status().message();
+  auto size = HardwareCameras("{name: left, device: /dev/video0, width: 0}", "{name: right, device: /dev/video1}");
+  ASSERT_FALSE(size.ok());
+  EXPECT_NE(size.status().message().find("camera 'left': width and height"), std::string::npos);
+  auto no_device = HardwareCameras("{name: left, device: /dev/video0}", "{name: right, backend: v4l2}");
+  ASSERT_FALSE(no_device.ok());
+  EXPECT_NE(no_device.status().message().find("camera 'right' has no device"), std::string::npos);
+}
+
+TEST(RmpConfigTest, LibcameraCamerasByIdOrIndexWhenBuiltWithIt) {
+  auto c = HardwareCameras("{name: left, backend: libcamera, device: 0}",
+                           "{name: right, backend: libcamera, device: '/base/soc/i2c0mux/i2c@1/imx219@10'}");
+  if (LibcameraBuilt()) {
+    ASSERT_TRUE(c.ok()) << c.status().ToString();
+    ASSERT_EQ(c->cameras.size(), 2u);
+    EXPECT_EQ(c->cameras[0].backend, "libcamera");
+    EXPECT_EQ(c->cameras[0].device, "0");
+    EXPECT_EQ(c->cameras[1].device, "/base/soc/i2c0mux/i2c@1/imx219@10");
+    auto no_id = HardwareCameras("{name: left, backend: libcamera}", "{name: right, device: /dev/video1}");
+    ASSERT_FALSE(no_id.ok());
+    EXPECT_NE(no_id.status().message().find("libcamera camera id"), std::string::npos) << no_id.status().message();
+    // The same index twice is one camera; v4l2 and libcamera names never collide.
+    EXPECT_FALSE(HardwareCameras("{name: left, backend: libcamera, device: 0}", "{name: right, backend: libcamera, device: 0}").ok());
+    EXPECT_TRUE(HardwareCameras("{name: left, backend: libcamera, device: 0}", "{name: right, device: /dev/video0}").ok());
+  } else {
+    ASSERT_FALSE(c.ok());
+    EXPECT_NE(c.status().message().find("built without libcamera"), std::string::npos) << c.status().message();
+    EXPECT_NE(c.status().message().find("camera 'left'"), std::string::npos) << c.status().message();
+  }
+}
+
 }  // namespace
 }  // namespace idi::rmp
