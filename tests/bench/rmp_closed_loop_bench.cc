@@ -7,6 +7,7 @@
 //
 // Wall time depends on what else the machine runs; the CPU time beside it shows the work itself.
 // Run: build/<dir>/tests/bench/rmp_closed_loop_bench [--runs 3] [--rate-hz 30] [--track TRACK.yaml]
+//        [--shading-tolerance-dn T] (the renderer's interpolation of smooth shading; 0 = every pixel exactly)
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <sys/resource.h>
@@ -36,12 +37,15 @@ int Main(int argc, char** argv) {
   int runs = 3;
   double rate_hz = 30.0;
   std::string track_file;
+  double shading_tolerance_dn = -1;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
     if (a == "--runs") {
       runs = std::max(1, std::atoi(argv[i + 1]));
     } else if (a == "--rate-hz") {
       rate_hz = std::atof(argv[i + 1]);
+    } else if (a == "--shading-tolerance-dn") {
+      shading_tolerance_dn = std::atof(argv[i + 1]);
     } else if (a == "--track") {
       track_file = argv[i + 1];
     } else {
@@ -63,7 +67,9 @@ int Main(int argc, char** argv) {
   }
   if (o.track.speed_mps == 0) o.track.speed_mps = o.config.planner.cruise_speed_mps;
   o.config.sim.camera_rate_hz = rate_hz;
-  fmt::print("closed loop, {} track, cameras at {:g} Hz, {} run(s)\n\n", track_file.empty() ? "standard" : track_file, rate_hz, runs);
+  if (shading_tolerance_dn >= 0) o.config.sim.render.shading_tolerance_dn = shading_tolerance_dn;
+  fmt::print("closed loop, {} track, cameras at {:g} Hz, shading tolerance {:g} DN, {} run(s)\n\n",
+             track_file.empty() ? "standard" : track_file, rate_hz, o.config.sim.render.shading_tolerance_dn, runs);
   fmt::print("| run | completed | stereo pairs | simulated s | wall s | CPU s | speed factor (sim/wall) |\n");
   fmt::print("|---|---|---|---|---|---|---|\n");
   std::vector<double> factors;
