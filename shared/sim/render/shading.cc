@@ -154,7 +154,8 @@ Vec3d TexturedAlbedo(const TexturePlan& plan, const Vec3d& base, double u, doubl
 struct TexturePoint {
   double u, v, fu, fv;
 };
-TexturePoint TextureAt(const Prepared& prep, const Surface& s, const Vec3d& ray, double w, double footprint_px) {
+[[gnu::always_inline]] inline TexturePoint TextureAt(const Prepared& prep, const Surface& s, const Vec3d& ray, double w,
+                                                   double footprint_px) {
   const double inv_w = 1 / w;
   const double dw_dx = s.normal.x() / (prep.fx * s.d) * inv_w * inv_w;
   const double dw_dy = s.normal.y() / (prep.fy * s.d) * inv_w * inv_w;
