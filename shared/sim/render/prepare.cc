@@ -490,6 +490,7 @@ void AddMesh(Prepared* prep, int mesh_index, const Cylinder* cylinder, int* next
     Surface s;
     s.normal = n;
     s.d = d;
+    s.inv_d = 1 / d;
     const Material* mat = m.face_material[f];
     s.albedo = mat->albedo;
     if (mat->texture.Enabled()) {
@@ -678,6 +679,8 @@ Result<Prepared> Prepare(const Scene& scene, const CameraModel& camera, const Ri
   prep.cam_from_world = cam_from_world;
   prep.fx = camera.fx();
   prep.fy = camera.fy();
+  prep.inv_fx = 1 / prep.fx;
+  prep.inv_fy = 1 / prep.fy;
   prep.cx = camera.cx();
   prep.cy = camera.cy();
   prep.near_clip = options.near_clip;

@@ -60,6 +60,7 @@ TexturePlan MakeTexturePlan(const Texture& texture);
 struct Surface {
   Vec3d normal = Vec3d::UnitZ();  // unit, towards the camera side that sees the face
   double d = -1;                  // plane: normal . P = d (negative for a face that is seen)
+  double inv_d = -1;              // 1 / d
   Vec3d albedo = Vec3d::Ones();
   const Texture* texture = nullptr;
   int texture_plan = -1;          // index into Prepared::texture_plans
@@ -158,6 +159,7 @@ struct Prepared {
   CameraModel camera;
   Rigid3d cam_from_world;
   double fx = 1, fy = 1, cx = 0, cy = 0;
+  double inv_fx = 1, inv_fy = 1;  // 1 / fx, 1 / fy (shading multiplies instead of dividing)
   double near_clip = 1e-3;
   std::vector<Mesh> meshes;
   std::vector<Surface> surfaces;

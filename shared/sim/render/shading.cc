@@ -169,21 +169,20 @@ Vec3d TexturedAlbedo(const TexturePlan& plan, const Vec3d& base, double u, doubl
 
 // A surface point's texture coordinates and the footprint of `footprint_px` pixels in texture units:
 // the derivative of the surface point along x and y, dp/dx = (e_x / fx) / w - ray (dw/dx) / w^2 (and
-// likewise for y), dotted with the texture axes. w = 1/z on the face's plane.
+// likewise for y), dotted with the texture axes. inv_w = z on the face's plane (w = 1/z). Per
+// shaded point: reciprocals are multiplied, not divided by.
 struct TexturePoint {
   double u, v, fu, fv;
 };
-[[gnu::always_inline]] inline TexturePoint TextureAt(const Prepared& prep, const Surface& s, const Vec3d& ray, double w,
-                                                   double footprint_px) {
-  const double inv_w = 1 / w;
-  const double dw_dx = s.normal.x() / (prep.fx * s.d) * inv_w * inv_w;
-  const double dw_dy = s.normal.y() / (prep.fy * s.d) * inv_w * inv_w;
+[[gnu::always_inline]] inline TexturePoint TextureAt(const Prepared& prep, const Surface& s, const Vec3d& ray,
+                                                   double inv_w, double footprint_px) {
+  const double dw_dx = s.normal.x() * prep.inv_fx * s.inv_d * inv_w * inv_w;
+  const double dw_dy = s.normal.y() * prep.inv_fy * s.inv_d * inv_w * inv_w;
   const double tu_r = s.tex_u.dot(ray), tv_r = s.tex_v.dot(ray);
+  const double zx = inv_w * prep.inv_fx, zy = inv_w * prep.inv_fy;
   TexturePoint tp;
-  tp.fu = footprint_px * (std::abs(s.tex_u.x() * inv_w / prep.fx - tu_r * dw_dx) +
-                          std::abs(s.tex_u.y() * inv_w / prep.fy - tu_r * dw_dy));
-  tp.fv = footprint_px * (std::abs(s.tex_v.x() * inv_w / prep.fx - tv_r * dw_dx) +
-                          std::abs(s.tex_v.y() * inv_w / prep.fy - tv_r * dw_dy));
+  tp.fu = footprint_px * (std::abs(s.tex_u.x() * zx - tu_r * dw_dx) + std::abs(s.tex_u.y() * zy - tu_r * dw_dy));
+  tp.fv = footprint_px * (std::abs(s.tex_v.x() * zx - tv_r * dw_dx) + std::abs(s.tex_v.y() * zy - tv_r * dw_dy));
   tp.u = tu_r * inv_w + s.tex_u0;
   tp.v = tv_r * inv_w + s.tex_v0;
   return tp;
@@ -193,9 +192,9 @@ struct TexturePoint {
 
 Vec3d Shade(const Prepared& prep, const Surface& s, double x, double y, double footprint_px) {
   if (s.constant) return s.radiance;
-  const Vec3d ray = prep.Ray(x, y);
-  const double w = s.normal.dot(ray) / s.d;  // 1/z on the face's plane
-  const Vec3d p = ray / w;
+  const Vec3d ray((x - prep.cx) * prep.inv_fx, (y - prep.cy) * prep.inv_fy, 1.0);
+  const double inv_w = 1 / (s.normal.dot(ray) * s.inv_d);  // z on the face's plane
+  const Vec3d p = ray * inv_w;
   double irradiance = s.flat_irradiance;
   Vec3d n = s.normal;
   if (s.cylinder) {
@@ -234,7 +233,7 @@ Vec3d Shade(const Prepared& prep, const Surface& s, double x, double y, double f
   }
   Vec3d albedo = s.albedo;
   if (s.texture != nullptr) {
-    const TexturePoint tp = TextureAt(prep, s, ray, w, footprint_px);
+    const TexturePoint tp = TextureAt(prep, s, ray, inv_w, footprint_px);
     albedo = TexturedAlbedo(prep.texture_plans[static_cast<std::size_t>(s.texture_plan)], albedo, tp.u, tp.v, tp.fu, tp.fv);
   }
   return irradiance * albedo;
@@ -243,8 +242,8 @@ Vec3d Shade(const Prepared& prep, const Surface& s, double x, double y, double f
 double ShadingDetailPx(const Prepared& prep, const Surface& s, double x, double y, double footprint_px,
                        double radiance, double negligible) {
   if (s.texture == nullptr) return std::numeric_limits<double>::infinity();
-  const Vec3d ray = prep.Ray(x, y);
-  const TexturePoint tp = TextureAt(prep, s, ray, s.normal.dot(ray) / s.d, footprint_px);
+  const Vec3d ray((x - prep.cx) * prep.inv_fx, (y - prep.cy) * prep.inv_fy, 1.0);
+  const TexturePoint tp = TextureAt(prep, s, ray, 1 / (s.normal.dot(ray) * s.inv_d), footprint_px);
   const TexturePlan& plan = prep.texture_plans[static_cast<std::size_t>(s.texture_plan)];
   // Texture units per pixel (an upper bound: fu and fv sum the absolute derivatives).
   const double f = std::max(tp.fu, tp.fv);
