@@ -9,7 +9,9 @@
 //     front of it (depth order may change inside a pixel, e.g. where a box stands on a table), so edge
 //     coverage is exact rather than supersampled, and lens distortion bends edges without adding blur.
 //     Shading is integrated per visible piece (its centroid; textures are box-filtered over the pixel
-//     footprint) and by n x n quadrature near laser spots.
+//     footprint) and by n x n quadrature near laser spots. Away from edges (more than a tile), smooth
+//     shading may be interpolated between exactly shaded pixels 2 px apart, within
+//     RenderOptions::shading_tolerance_dn.
 //  2. Vignetting (irradiance falls off towards the corners), exposure (radiance 1 -> exposure_dn).
 //  3. Gaussian point spread function, sigma = psf_sigma_px (a symmetric kernel: it moves no edge).
 //  4. Sensor: photon shot noise (Poisson in electrons, gain in DN per electron), Gaussian read noise,
