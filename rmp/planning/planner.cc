@@ -366,18 +366,20 @@ std::vector<double> Planner::CornerRadii(const std::vector<Vec2d>& vertices, con
       in_view->push_back(true);
       continue;
     }
-    const CachedCorner* cached = nullptr;
+    // A turn that keeps the track in view is kept; a corner decided as not in view is decided again
+    // each time (the view of it may improve, or it may turn out not to be a corner at all).
+    CachedCorner* cached = nullptr;
     double nearest = kCornerCacheTolerance_m;
-    for (const CachedCorner& c : radius_cache_) {
+    for (CachedCorner& c : radius_cache_) {
       const double d = (c.vertex - vertices[i]).norm();
       if (d < nearest && std::abs(c.turn_rad - turn) < DegToRad(kCornerCacheTurnTolerance_deg)) {
         nearest = d;
         cached = &c;
       }
     }
-    if (cached != nullptr) {
+    if (cached != nullptr && cached->visible) {
       radii.push_back(cached->radius_m);
-      in_view->push_back(cached->visible);
+      in_view->push_back(true);
       continue;
     }
     double chosen = RadiusForCut(options_.corner_cut_m, turn);
@@ -395,7 +397,13 @@ std::vector<double> Planner::CornerRadii(const std::vector<Vec2d>& vertices, con
     }
     // Corners seen only near the horizon are not cached: the track beyond them may still grow.
     const bool complete = (vertices.back() - vertices[i]).norm() > options_.visibility_check_m + 0.2;
-    if (complete) radius_cache_.push_back({vertices[i], turn, chosen, visible});
+    if (complete) {
+      if (cached != nullptr) {
+        *cached = {vertices[i], turn, chosen, visible};
+      } else {
+        radius_cache_.push_back({vertices[i], turn, chosen, visible});
+      }
+    }
     radii.push_back(chosen);
     in_view->push_back(visible);
   }

@@ -193,9 +193,10 @@ class Planner {
   PlannerOptions options_;
   std::deque<Sent> sent_;
   SmoothPath path_;
-  // Radii decided for corners (odometry frame), reused while the corner's vertex and turn stay within a
-  // few cm and degrees: fusion moves a vertex by millimetres from frame to frame, and re-deciding the
-  // radius as the vehicle reaches the corner would swap a tight turn for a wide one too late to follow.
+  // Radii decided for corners (odometry frame). A turn found to keep the track in view is reused while
+  // the corner's vertex and turn stay within a few cm and degrees: fusion moves a vertex by millimetres
+  // from frame to frame, and re-deciding as the vehicle reaches the corner would swap a tight turn for a
+  // wide one too late to follow. A corner found not in view is decided again every time.
   struct CachedCorner {
     Vec2d vertex;
     double turn_rad;
