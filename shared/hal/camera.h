@@ -27,6 +27,10 @@ struct CameraSettings {
   bool gray = true;        // deliver CV_8UC1
 };
 
+// InvalidArgument naming `where` for an empty frame size, a negative or non-finite exposure or a
+// non-finite gain: what every backend refuses before touching the device.
+Status CheckCameraSettings(const CameraSettings& settings, const std::string& where);
+
 class CameraDevice {
  public:
   virtual ~CameraDevice() = default;

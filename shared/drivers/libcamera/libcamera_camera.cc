@@ -121,14 +121,7 @@ std::string LibcameraCamera::Where() const {
 
 Status LibcameraCamera::Start(const hal::CameraSettings& settings) {
   IDI_RETURN_IF_ERROR(options_.Check());
-  if (settings.width <= 0 || settings.height <= 0) {
-    return InvalidArgument(Where() + ": frame size " + std::to_string(settings.width) + "x" +
-                           std::to_string(settings.height) + " is empty");
-  }
-  if (!std::isfinite(settings.exposure_us) || settings.exposure_us < 0) {
-    return InvalidArgument(Where() + ": exposure_us " + std::to_string(settings.exposure_us) + " is invalid");
-  }
-  if (!std::isfinite(settings.gain_db)) return InvalidArgument(Where() + ": gain_db is not a finite number");
+  IDI_RETURN_IF_ERROR(hal::CheckCameraSettings(settings, Where()));
   Teardown();
   settings_ = settings;
   if (settings.exposure_us > 0) exposure_us_ = settings.exposure_us;

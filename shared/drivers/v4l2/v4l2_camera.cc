@@ -127,16 +127,10 @@ std::string V4l2Camera::Where() const {
 
 Status V4l2Camera::Start(const hal::CameraSettings& settings) {
   IDI_RETURN_IF_ERROR(options_.Check());
-  if (settings.width <= 0 || settings.height <= 0) {
-    return InvalidArgument(Where() + ": frame size " + std::to_string(settings.width) + "x" +
-                           std::to_string(settings.height) + " is empty");
-  }
+  IDI_RETURN_IF_ERROR(hal::CheckCameraSettings(settings, Where()));
   if (settings.gain_db != 0) {
     return InvalidArgument(Where() + ": gain_db " + std::to_string(settings.gain_db) +
                            " cannot be set: V4L2 gain is in device-specific units; leave it 0");
-  }
-  if (settings.exposure_us < 0 || !std::isfinite(settings.exposure_us)) {
-    return InvalidArgument(Where() + ": exposure_us " + std::to_string(settings.exposure_us) + " is invalid");
   }
   CloseDevice();
   settings_ = settings;
