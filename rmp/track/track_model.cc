@@ -405,14 +405,18 @@ Result<TrackUpdateStats> TrackModel::Update(const TrackObservation& observation,
     for (double t = 0.05; t <= options_.end_confirm_m + 1e-9; t += 0.05) {
       const Vec2d p = end + t * dir;
       if (!InView(footprints, p)) break;
+      // Only tape that could continue the track blocks: a piece running along the end's direction
+      // there (the rule that bridges a gap asks the same of a piece). Tape crossing the ray - the
+      // start of a loop passing under the end - does not.
       bool tape = false;
+      const double gate = std::max(options_.association_gate_m, t * std::tan(DegToRad(options_.max_gap_angle_deg)));
       for (const Piece& piece : pieces) {
         if (piece.used) continue;
-        for (const Vec2d& q : piece.pts) {
-          if ((q - p).norm() < std::max(options_.association_gate_m, t * std::tan(DegToRad(options_.max_gap_angle_deg)))) {
-            tape = true;
-            break;
-          }
+        const std::size_t n = piece.pts.size();
+        for (std::size_t k = 0; k < n && !tape; ++k) {
+          if ((piece.pts[k] - p).norm() >= gate) continue;
+          const Vec2d along = piece.pts[std::min(k + 5, n - 1)] - piece.pts[k >= 5 ? k - 5 : 0];
+          tape = along.norm() < 1e-9 || std::abs(along.normalized().dot(dir)) > std::cos(DegToRad(45.0));
         }
         if (tape) break;
       }

@@ -80,6 +80,31 @@ TEST(TrackModelTest, ConfirmsTheEndOnlyWithClearGroundBeyondIt) {
   EXPECT_NEAR(ahead.points.back().x(), 3.0, 0.02);
 }
 
+TEST(TrackModelTest, ConfirmsTheEndWhenTapeCrossesBeyondIt) {
+  // A loop's last leg ends 0.5 m short of its first leg, which crosses the ray beyond the end: that
+  // tape cannot continue the track (it runs across it), so it does not hold up the end.
+  SyntheticTrack track{{{0, 0}, {3, 0}}, {}};
+  SyntheticTrack crossing{{{3.5, -2}, {3.5, 2}}, {}};
+  // The same tape turned along the track does: it may be the track beyond a gap.
+  SyntheticTrack in_line{{{3.5, 0}, {5.5, 0}}, {}};
+  for (const bool across : {true, false}) {
+    TrackModel model;
+    for (double x = 0; x <= 1.8 + 1e-9; x += 0.02) {
+      const Pose2 pose{x, 0, 0};
+      const int64_t t_ns = static_cast<int64_t>(x * 1e9);
+      TrackObservation obs = SyntheticObservation(track, pose, WideView(), t_ns);
+      const TrackObservation more = SyntheticObservation(across ? crossing : in_line, pose, WideView(), t_ns);
+      obs.pieces.insert(obs.pieces.end(), more.pieces.begin(), more.pieces.end());
+      ASSERT_TRUE(model.Update(obs, pose).ok());
+    }
+    SCOPED_TRACE(across ? "crossing tape" : "tape in line");
+    EXPECT_EQ(model.end_known(), across);
+    if (across) {
+      for (const TrackSample& s : model.samples()) EXPECT_LT(s.xy.x(), 3.05);
+    }
+  }
+}
+
 TEST(TrackModelTest, IgnoresOtherTapeBesideTheTrack) {
   // A second tape 0.5 m to the left (the loop coming back) never joins the track.
   SyntheticTrack track{{{0, 0}, {6, 0}}, {}};
