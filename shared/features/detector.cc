@@ -2,7 +2,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
+#include <set>
 #include <string>
+#include <utility>
 
 #include "shared/features/active_contour.h"
 #include "shared/features/empl.h"
@@ -143,6 +146,20 @@ double AngleBoundRad(double contrast, double noise_sigma, double blur_sigma_px, 
   return noise_sigma / contrast * std::sqrt(24.0 * std::sqrt(kDetPi) * sigma_e / (length_px * length_px * length_px));
 }
 
+namespace {
+
+// Whether the stretch a-b lies on line l (within 1.5 px of it) and inside its extent (2 px slack).
+bool Covers(const EmplLine& l, const Vec2d& a, const Vec2d& b) {
+  if (std::fabs(l.SignedDistance(a)) >= 1.5 || std::fabs(l.SignedDistance(b)) >= 1.5) {
+    return false;
+  }
+  const Vec2d u = l.Direction();
+  const double ta = u.dot(a - l.p1), tb = u.dot(b - l.p1);
+  return std::min(ta, tb) >= -2.0 && std::max(ta, tb) <= l.length_px + 2.0;
+}
+
+}  // namespace
+
 struct FeatureDetector::Impl {
   FeatureOptions options;
   std::optional<CameraModel> camera;
@@ -155,12 +172,29 @@ struct FeatureDetector::Impl {
 
   // Merges collinear pieces (§8.8.2): same line to within the tolerances, gap no larger than the
   // Hough gap (or overlapping, i.e. two peaks of one edge).
-  void MergeCollinear(const EmplFitter& fitter, std::vector<EmplFitResult>* fits) const {
+  //
+  // What is not refitted (the refit would only repeat a decision already made):
+  //  - two pieces one fit split apart (`origin`: the fit each line came from): that fit found them
+  //    to be different lines from the same pixels - a curve of short straight pieces, a corner;
+  //  - a pair whose refit was refused before: after a merge the scan starts again, and the refit
+  //    depends only on the two lines and the image. Lines carry serial numbers for that; a merged
+  //    line gets a new one (and a new origin).
+  // Without both, a curve of many short pieces (tens of lines, almost none mergeable) cost tens of
+  // refits per image.
+  void MergeCollinear(const EmplFitter& fitter, std::vector<EmplFitResult>* fits, std::vector<uint32_t> origin) const {
     const EmplOptions& eo = options.empl;
+    std::vector<uint32_t> serial(fits->size());
+    for (std::size_t k = 0; k < serial.size(); ++k) serial[k] = static_cast<uint32_t>(k);
+    uint32_t next_serial = static_cast<uint32_t>(serial.size());
+    uint32_t next_origin = origin.empty() ? 0 : *std::max_element(origin.begin(), origin.end()) + 1;
+    std::set<std::pair<uint32_t, uint32_t>> refused;
     for (std::size_t pass = 0; pass <= fits->size() + 1; ++pass) {
       bool merged = false;
       for (std::size_t i = 0; i < fits->size() && !merged; ++i) {
         for (std::size_t j = i + 1; j < fits->size() && !merged; ++j) {
+          if (origin[i] == origin[j] || refused.count({serial[i], serial[j]}) != 0) {
+            continue;
+          }
           const EmplLine& a = (*fits)[i].line;
           const EmplLine& b = (*fits)[j].line;
           const double dang = std::asin(std::min(1.0, std::fabs(a.normal.x() * b.normal.y() - a.normal.y() * b.normal.x())));
@@ -189,11 +223,21 @@ struct FeatureDetector::Impl {
           req.segment.offset = longer.offset;
           req.segment.t0 = std::min(ta0, tb0);
           req.segment.t1 = std::max(ta1, tb1);
+          // Each piece has already grown to where its edge ends: the refit asks only whether the
+          // stretch they span together is one line (growing further would refit the rest of a curve).
+          req.t_limit_lo = req.segment.t0 - 2.0;
+          req.t_limit_hi = req.segment.t1 + 2.0;
           std::vector<EmplFitResult> refit = fitter.Fit(req);
           if (refit.size() == 1 && refit[0].line.length_px >= 0.9 * std::max(a.length_px, b.length_px)) {
             (*fits)[i] = std::move(refit[0]);
             fits->erase(fits->begin() + static_cast<std::ptrdiff_t>(j));
+            serial[i] = next_serial++;
+            serial.erase(serial.begin() + static_cast<std::ptrdiff_t>(j));
+            origin[i] = next_origin++;
+            origin.erase(origin.begin() + static_cast<std::ptrdiff_t>(j));
             merged = true;
+          } else {
+            refused.insert({serial[i], serial[j]});
           }
         }
       }
@@ -259,33 +303,38 @@ Result<FeatureResult> FeatureDetector::Detect(const cv::Mat& image) {
 
   EmplFitter fitter(m.gradients, m.geometry, m.edges, m.options, &m.empl_scratch);
   std::vector<EmplFitResult> fits;
+  std::vector<uint32_t> origin;  // the fit (Hough segment) each line came from
   for (const HoughSegment& seg : segments) {
     // A weaker peak on an edge that an EMPL line already explains (the EMPL fit grows a segment to
     // the edge's full length, beyond the pixels its Hough peak claimed) adds nothing.
+    // On a curve, the lines that explain a peak are the straight pieces an earlier fit split the
+    // curve into: a peak is explained when every stretch of it lies on one of them.
     const Vec2d foot = seg.normal * seg.offset, dir = LineDirection(seg.normal);
-    const Vec2d a = foot + seg.t0 * dir, b = foot + seg.t1 * dir;
-    bool explained = false;
-    for (const EmplFitResult& f : fits) {
-      const EmplLine& l = f.line;
-      if (std::fabs(l.SignedDistance(a)) < 1.5 && std::fabs(l.SignedDistance(b)) < 1.5) {
-        const Vec2d u = l.Direction();
-        const double ta = u.dot(a - l.p1), tb = u.dot(b - l.p1);
-        if (std::min(ta, tb) >= -2.0 && std::max(ta, tb) <= l.length_px + 2.0) {
-          explained = true;
-          break;
-        }
-      }
+    const auto explained = [&fits](const Vec2d& from, const Vec2d& to) {
+      return std::any_of(fits.begin(), fits.end(), [&](const EmplFitResult& f) { return Covers(f.line, from, to); });
+    };
+    const int stretches = std::max(1, static_cast<int>(std::ceil((seg.t1 - seg.t0) / 8.0)));
+    bool all_explained = true;
+    for (int k = 0; k < stretches && all_explained; ++k) {
+      const double t0 = seg.t0 + (seg.t1 - seg.t0) * k / stretches, t1 = seg.t0 + (seg.t1 - seg.t0) * (k + 1) / stretches;
+      all_explained = explained(foot + t0 * dir, foot + t1 * dir);
     }
-    if (explained) {
+    if (all_explained) {
       continue;
     }
     EmplRequest req;
     req.segment = seg;
     for (EmplFitResult& f : fitter.Fit(req)) {
+      // A fit grows along the whole edge and splits a curve into straight pieces: the peaks of one
+      // curved edge each return the same pieces. A piece an earlier line already covers is that line.
+      if (explained(f.line.p1, f.line.p2)) {
+        continue;
+      }
       fits.push_back(std::move(f));
+      origin.push_back(static_cast<uint32_t>(&seg - segments.data()));
     }
   }
-  m.MergeCollinear(fitter, &fits);
+  m.MergeCollinear(fitter, &fits, std::move(origin));
   // Longest first: stable ids that favour the best-supported lines.
   std::sort(fits.begin(), fits.end(),
             [](const EmplFitResult& a, const EmplFitResult& b) { return a.line.length_px > b.line.length_px; });
