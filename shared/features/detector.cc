@@ -148,9 +148,9 @@ double AngleBoundRad(double contrast, double noise_sigma, double blur_sigma_px, 
 
 namespace {
 
-// Whether the stretch a-b lies on line l (within 1.5 px of it) and inside its extent (2 px slack).
-bool Covers(const EmplLine& l, const Vec2d& a, const Vec2d& b) {
-  if (std::fabs(l.SignedDistance(a)) >= 1.5 || std::fabs(l.SignedDistance(b)) >= 1.5) {
+// Whether the stretch a-b lies on line l (within tolerance_px of it) and inside its extent (2 px slack).
+bool Covers(const EmplLine& l, const Vec2d& a, const Vec2d& b, double tolerance_px = 1.5) {
+  if (std::fabs(l.SignedDistance(a)) >= tolerance_px || std::fabs(l.SignedDistance(b)) >= tolerance_px) {
     return false;
   }
   const Vec2d u = l.Direction();
@@ -314,16 +314,54 @@ Result<FeatureResult> FeatureDetector::Detect(const cv::Mat& image) {
       return std::any_of(fits.begin(), fits.end(), [&](const EmplFitResult& f) { return Covers(f.line, from, to); });
     };
     const int stretches = std::max(1, static_cast<int>(std::ceil((seg.t1 - seg.t0) / 8.0)));
-    bool all_explained = true;
-    for (int k = 0; k < stretches && all_explained; ++k) {
-      const double t0 = seg.t0 + (seg.t1 - seg.t0) * k / stretches, t1 = seg.t0 + (seg.t1 - seg.t0) * (k + 1) / stretches;
-      all_explained = explained(foot + t0 * dir, foot + t1 * dir);
+    const double step = (seg.t1 - seg.t0) / stretches;
+    std::vector<char> covered(static_cast<std::size_t>(stretches));
+    for (int k = 0; k < stretches; ++k) {
+      covered[static_cast<std::size_t>(k)] = explained(foot + (seg.t0 + k * step) * dir, foot + (seg.t0 + (k + 1) * step) * dir);
     }
-    if (all_explained) {
+    // The longest run of stretches nothing explains yet.
+    int run_lo = 0, run_hi = 0;
+    for (int k = 0; k < stretches;) {
+      if (covered[static_cast<std::size_t>(k)]) {
+        ++k;
+        continue;
+      }
+      int e = k;
+      while (e < stretches && !covered[static_cast<std::size_t>(e)]) ++e;
+      if (e - k > run_hi - run_lo) {
+        run_lo = k;
+        run_hi = e;
+      }
+      k = e;
+    }
+    if (run_hi == run_lo) {
       continue;
     }
     EmplRequest req;
     req.segment = seg;
+    // Fit only that run and let it grow away from the explained stretches, not back over them (on a
+    // curve the explained side is the pieces an earlier fit already cut; refitting them repeats it).
+    req.segment.t0 = seg.t0 + run_lo * step;
+    req.segment.t1 = seg.t0 + run_hi * step;
+    if (run_lo > 0) req.t_limit_lo = req.segment.t0 - step;
+    if (run_hi < stretches) req.t_limit_hi = req.segment.t1 + step;
+    // Beyond the peak's ends the fit grows while edge pixels stay in its band: it stops growing
+    // where the band reaches an explained stretch.
+    const double band = m.options.empl.band_halfwidth_px;
+    for (int side = 0; side < 2; ++side) {
+      if ((side == 0 && run_lo > 0) || (side == 1 && run_hi < stretches)) continue;
+      for (int k = 0; k < 32; ++k) {
+        const double t_near = side == 0 ? seg.t0 - k * 8.0 : seg.t1 + k * 8.0;
+        const double t_far = side == 0 ? t_near - 8.0 : t_near + 8.0;
+        const bool reached = std::any_of(fits.begin(), fits.end(), [&](const EmplFitResult& f) {
+          return Covers(f.line, foot + t_near * dir, foot + t_far * dir, band);
+        });
+        if (reached) {
+          (side == 0 ? req.t_limit_lo : req.t_limit_hi) = t_near;
+          break;
+        }
+      }
+    }
     for (EmplFitResult& f : fitter.Fit(req)) {
       // A fit grows along the whole edge and splits a curve into straight pieces: the peaks of one
       // curved edge each return the same pieces. A piece an earlier line already covers is that line.
