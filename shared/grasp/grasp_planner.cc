@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "shared/util/units.h"
 
@@ -98,15 +99,27 @@ Vec2d HullCentroid(const std::vector<Vec2d>& hull) {
 // `tol_mm`) seen from above - an object standing on the table does not overhang, so every point above
 // lies over its cross-section; a missing edge then makes the section smaller, never larger. Convex
 // hull; empty when fewer than three points.
+//
+// A wall: when the edges crossing the plane and the points above it all lie on one line (at least two
+// crossings, spanning `min_wall_mm`), the section is a single face seen from one side - the standing
+// leg of a bracket whose inner face was not reconstructed. Its thickness is unknown, and the object
+// need not be convex (the leg rises from one end of its foot), so the section is not guessed: `wall`
+// gets the face's two ends and the hull is empty.
+struct Wall {
+  Vec2d a = Vec2d::Zero(), b = Vec2d::Zero();
+};
+
 std::vector<Vec2d> CrossSection(const std::vector<Vec3d>& points, const std::vector<std::pair<int, int>>& edges, double z,
-                                double tol_mm) {
+                                double tol_mm, std::optional<Wall>* wall = nullptr, double min_wall_mm = 0.0) {
   std::vector<Vec2d> xy;
+  int crossings = 0;
   for (const auto& [i, j] : edges) {
     const Vec3d& a = points[static_cast<std::size_t>(i)];
     const Vec3d& b = points[static_cast<std::size_t>(j)];
     if ((a.z() - z) * (b.z() - z) < 0) {
       const double t = (z - a.z()) / (b.z() - a.z());
       xy.push_back((a + t * (b - a)).head<2>());
+      ++crossings;
     }
   }
   for (const Vec3d& p : points) {
@@ -119,6 +132,27 @@ std::vector<Vec2d> CrossSection(const std::vector<Vec3d>& points, const std::vec
   };
   std::vector<Vec2d> hull = xy.size() >= 3 ? ConvexHull2d(xy) : std::vector<Vec2d>{};
   if (hull.size() >= 3 && area(hull) > 100.0) return hull;
+  if (wall != nullptr) wall->reset();
+  if (crossings >= 2) {
+    // The two points furthest apart, and every point within 2 mm of the line through them.
+    Vec2d a = xy[0], b = xy[0];
+    double longest = 0;
+    for (const Vec2d& p : xy) {
+      for (const Vec2d& q : xy) {
+        if ((p - q).norm() > longest) {
+          longest = (p - q).norm();
+          a = p;
+          b = q;
+        }
+      }
+    }
+    const Vec2d u = longest > 0 ? Vec2d((b - a) / longest) : Vec2d::UnitX();
+    const bool on_line = std::all_of(xy.begin(), xy.end(), [&](const Vec2d& p) { return std::abs(Cross2(u, p - a)) < 2.0; });
+    if (on_line && longest >= min_wall_mm) {
+      if (wall != nullptr) *wall = Wall{a, b};
+      return {};
+    }
+  }
   // Too few edges seen to outline the section (e.g. a prism whose sloped edges were not confirmed):
   // for a convex object every segment between two of its points lies inside it, so where the segments
   // between points below and above cross the plane is inside the section (an inner estimate again).
@@ -201,6 +235,49 @@ std::vector<PlanarGrasp> Candidates(const std::vector<Vec2d>& hull, const Vec2d&
   return candidates;
 }
 
+// Two-on-one across a wall seen from one side: the thumb on the seen face pushing through it towards
+// the rest of the object (where the wall's thickness must lie), fingers 1 and 2 half the finger spacing
+// either side of it on the far face, pushing back; both faces parallel (a plate). The far face is put
+// at the nearest model point behind the seen face (the foot's corner where the inner face meets it),
+// else at the hand's smallest aperture: the fingers close until they meet it, so the width only sets
+// how deep the palm goes. Empty when the face is too short for the fingers or nothing says which side
+// the wall's thickness is on.
+std::optional<PlanarGrasp> WallGrasp(const Wall& wall, const std::vector<Vec3d>& points, const Vec2d& object_centroid,
+                                     const GraspOptions& o) {
+  const double len = (wall.b - wall.a).norm();
+  const double half_spacing = 0.5 * o.hand.finger_spacing_mm;
+  const double end_margin = 0.25 * o.hand.finger_width_mm;
+  if (len < 2.0 * (half_spacing + end_margin)) return std::nullopt;
+  const Vec2d side = (wall.b - wall.a) / len;
+  Vec2d inward(-side.y(), side.x());
+  const double towards = inward.dot(object_centroid - wall.a);
+  if (std::abs(towards) < 5.0) return std::nullopt;
+  if (towards < 0) inward = -inward;
+  double thickness = o.hand.min_aperture_mm;
+  double nearest = 1e300;
+  for (const Vec3d& p : points) {
+    const Vec2d q = p.head<2>() - wall.a;
+    const double along = q.dot(side), depth = q.dot(inward);
+    if (along >= -5.0 && along <= len + 5.0 && depth >= 2.0 && depth < nearest) nearest = depth;
+  }
+  if (nearest <= 40.0) thickness = std::max(thickness, nearest);
+  const double s = std::clamp((object_centroid - wall.a).dot(side), half_spacing + end_margin, len - half_spacing - end_margin);
+  PlanarGrasp g;
+  g.axis = inward;
+  g.contacts.push_back(wall.a + s * side);
+  g.normals.push_back(-inward);
+  g.pushes.push_back(inward);
+  for (const double off : {-half_spacing, half_spacing}) {
+    g.contacts.push_back(wall.a + s * side + off * side + thickness * inward);
+    g.normals.push_back(inward);
+    g.pushes.push_back(-inward);
+  }
+  g.width_mm = thickness;
+  g.centre = g.contacts[0] + 0.5 * thickness * inward;
+  g.spread_rad = 0;
+  return g;
+}
+
 // How far a wall leans at a contact: the silhouettes `dz` above and below, measured along the push from
 // the contact's line. The face's normal tilts by atan(inset / rise) out of the horizontal plane.
 double WallTilt(const std::vector<Vec2d>& below, const std::vector<Vec2d>& above, const Vec2d& contact, const Vec2d& push,
@@ -269,22 +346,34 @@ Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_
   GraspPlan best;
   bool found = false;
   int considered = 0;
+  const double min_wall_mm = o.hand.finger_spacing_mm + 0.5 * o.hand.finger_width_mm;
   for (const double contact_z : heights) {
     std::vector<Vec2d> hull = all_hull;
     std::vector<Vec2d> below, above;
+    std::vector<PlanarGrasp> candidates;
+    std::optional<Wall> wall, wall_below, wall_above;
     if (!edges.empty()) {
-      hull = CrossSection(points, edges, contact_z, 0.5);
-      below = CrossSection(points, edges, contact_z - dz, 0.5);
-      above = CrossSection(points, edges, contact_z + dz, 0.5);
-      if (hull.size() < 3) continue;
+      hull = CrossSection(points, edges, contact_z, 0.5, &wall, min_wall_mm);
+      below = CrossSection(points, edges, contact_z - dz, 0.5, &wall_below, min_wall_mm);
+      above = CrossSection(points, edges, contact_z + dz, 0.5, &wall_above, min_wall_mm);
+      if (wall && wall_below && wall_above) {
+        // A wall standing straight: its face at dz below and above lies on the same line.
+        const Vec2d u = (wall->b - wall->a).normalized();
+        const double lean = std::max(std::abs(Cross2(u, wall_below->a - wall->a)), std::abs(Cross2(u, wall_above->a - wall->a)));
+        const std::optional<PlanarGrasp> g = WallGrasp(*wall, points, all_centroid, o);
+        if (g && std::atan2(lean, dz) < cone) candidates.push_back(*g);
+      }
+      if (hull.size() < 3 && candidates.empty()) continue;
     }
-    const Vec2d centroid = HullCentroid(hull);
-    const std::vector<PlanarGrasp> candidates = Candidates(hull, centroid, o);
+    if (hull.size() >= 3) {
+      const std::vector<PlanarGrasp> on_hull = Candidates(hull, HullCentroid(hull), o);
+      candidates.insert(candidates.end(), on_hull.begin(), on_hull.end());
+    }
     considered += static_cast<int>(candidates.size());
     for (const PlanarGrasp& g : candidates) {
       if (g.width_mm < o.hand.min_aperture_mm || g.width_mm > o.hand.max_aperture_mm) continue;
       double margin = FrictionMargin(g, cone);
-      if (!edges.empty()) {
+      if (!edges.empty() && hull.size() >= 3) {
         for (std::size_t k = 0; k < g.contacts.size(); ++k) {
           const double tilt = WallTilt(below, above, g.contacts[k], g.pushes[k], dz);
           const double planar = AngleBetween(g.pushes[k], -g.normals[k]);
@@ -296,8 +385,11 @@ Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_
       if (margin <= 0) continue;
       // Torque when lifting: the hand's centre line should pass near the object's centroid.
       const double offset = (g.centre - all_centroid).norm();
-      const double quality = margin / cone - offset / 50.0 - 0.2 * g.width_mm / o.hand.max_aperture_mm;
-      if (found && quality <= best.quality) continue;
+      // Contacts at the default depth unless another height is clearly better (a little, for ties).
+      const double quality = margin / cone - offset / 50.0 - 0.2 * g.width_mm / o.hand.max_aperture_mm -
+                             0.05 * std::abs(contact_z - default_z) / height;
+      // Ties (the same grasp at several heights, equal but for rounding) keep the first: the default height.
+      if (found && quality <= best.quality + 1e-9) continue;
       found = true;
       best.quality = quality;
       best.width_mm = g.width_mm;

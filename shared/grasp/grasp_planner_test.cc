@@ -94,6 +94,37 @@ TEST(GraspPlannerTest, PrismIsGraspedOnItsVerticalEndsNotTheRoof) {
   EXPECT_EQ(PlanTopGrasp(p, 0.0, GraspOptions{}, {{0, 9}}).status().code(), StatusCode::kInvalidArgument);
 }
 
+TEST(GraspPlannerTest, BracketWhoseLegWasSeenFromOneSideIsGraspedAcrossTheLeg) {
+  // An L-bracket on the table (z = 0) as the scan reconstructed it: the foot's top corners, the leg's
+  // outer face (four corners, its vertical edges) and the corner where the leg's inner face meets the
+  // foot, but not the inner face itself. The leg is 13 mm thick and 65 mm wide; the foot reaches
+  // 80 mm from it.
+  const std::vector<Vec3d> points = {
+      {29.7, 82.9, 12.5},   // 0: foot, far corner
+      {4.0, 11.8, 12.6},    // 1: the leg's inner face meets the foot
+      {-0.2, -0.1, 0.0},    // 2: leg, outer face, bottom
+      {90.6, 61.3, 12.5},   // 3: foot, far corner
+      {60.6, -22.1, 76.7},  // 4: leg, outer face, top
+      {-0.1, 0.1, 76.6},    // 5: leg, outer face, top
+      {60.8, -21.9, -0.2},  // 6: leg, outer face, bottom
+  };
+  const std::vector<std::pair<int, int>> edges = {{0, 1}, {0, 3}, {2, 5}, {2, 6}, {4, 5}, {4, 6}};
+  const auto plan = PlanTopGrasp(points, 0.0, {}, edges);
+  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+  // Not the convex object the points would outline: the hand closes across the leg, the thumb on its
+  // seen face, fingers 1 and 2 behind it (on the side of the foot), at the leg's thickness.
+  EXPECT_EQ(plan->spread_rad, 0.0);
+  EXPECT_NEAR(plan->width_mm, 12.8, 1.0);
+  const Vec2d face = Vec2d(60.7, -22.0).normalized();
+  const Vec2d thumb = plan->thumb_contact.head<2>();
+  EXPECT_LT(std::abs(face.x() * thumb.y() - face.y() * thumb.x()), 1.0) << "the thumb is on the leg's seen face";
+  const Vec2d axis = plan->world_from_grasp.rotation.col(0).head<2>();
+  EXPECT_NEAR(std::abs(axis.dot(face)), 0.0, 0.01) << "the grip is across the leg";
+  EXPECT_GT(axis.dot(Vec2d(29.7, 82.9)), 0.0) << "fingers 1 and 2 on the foot's side";
+  // In the leg, 25 mm below its top (well above the foot).
+  EXPECT_NEAR(plan->thumb_contact.z(), 76.7 - 25.0, 0.1);
+}
+
 TEST(GraspPlannerTest, BadInput) {
   EXPECT_EQ(PlanTopGrasp({}, 0.0).status().code(), StatusCode::kInvalidArgument);
   auto pts = BoxPoints(Vec3d::Zero(), Vec3d(80, 60, 50), 0);
