@@ -7,7 +7,10 @@
 // (no slip; with the contacts opposing each other this is force closure). Two hand shapes are tried:
 // two-on-one (spread 0: the thumb, finger 3, on one silhouette edge and fingers 1 and 2 side by side
 // opposite, the antipodal grasp of parallel faces) and the tripod (spread 60 deg: three fingers 120 deg
-// apart closing on the centroid, for round and three-sided objects). Among feasible grasps the planner
+// apart closing on the centroid, for round and three-sided objects). A wall seen from one side only (a
+// bracket's leg whose inner face was not reconstructed: the section at contact height is a line) is
+// gripped across its thickness, thumb on the seen face, fingers 1 and 2 on the side of the rest of the
+// object. Among feasible grasps the planner
 // prefers a large friction margin, a grasp centre close to the centroid (little torque when lifting)
 // and a small aperture.
 #pragma once
