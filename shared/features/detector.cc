@@ -305,13 +305,14 @@ Result<FeatureResult> FeatureDetector::Detect(const cv::Mat& image) {
   std::vector<EmplFitResult> fits;
   std::vector<uint32_t> origin;  // the fit (Hough segment) each line came from
   for (const HoughSegment& seg : segments) {
-    // A weaker peak on an edge that an EMPL line already explains (the EMPL fit grows a segment to
-    // the edge's full length, beyond the pixels its Hough peak claimed) adds nothing.
-    // On a curve, the lines that explain a peak are the straight pieces an earlier fit split the
-    // curve into: a peak is explained when every stretch of it lies on one of them.
+    // A weaker peak on an edge that EMPL lines already explain (the EMPL fit grows a segment to the
+    // edge's full length, beyond the pixels its Hough peak claimed; on a curve, the straight pieces
+    // an earlier fit split it into) adds nothing: only the longest stretch of it that no line
+    // explains is fitted, and a peak with none is skipped.
     const Vec2d foot = seg.normal * seg.offset, dir = LineDirection(seg.normal);
-    const auto explained = [&fits](const Vec2d& from, const Vec2d& to) {
-      return std::any_of(fits.begin(), fits.end(), [&](const EmplFitResult& f) { return Covers(f.line, from, to); });
+    const auto explained = [&fits](const Vec2d& from, const Vec2d& to, double tolerance_px = 1.5) {
+      return std::any_of(fits.begin(), fits.end(),
+                         [&](const EmplFitResult& f) { return Covers(f.line, from, to, tolerance_px); });
     };
     const int stretches = std::max(1, static_cast<int>(std::ceil((seg.t1 - seg.t0) / 8.0)));
     const double step = (seg.t1 - seg.t0) / stretches;
@@ -353,10 +354,7 @@ Result<FeatureResult> FeatureDetector::Detect(const cv::Mat& image) {
       for (int k = 0; k < 32; ++k) {
         const double t_near = side == 0 ? seg.t0 - k * 8.0 : seg.t1 + k * 8.0;
         const double t_far = side == 0 ? t_near - 8.0 : t_near + 8.0;
-        const bool reached = std::any_of(fits.begin(), fits.end(), [&](const EmplFitResult& f) {
-          return Covers(f.line, foot + t_near * dir, foot + t_far * dir, band);
-        });
-        if (reached) {
+        if (explained(foot + t_near * dir, foot + t_far * dir, band)) {
           (side == 0 ? req.t_limit_lo : req.t_limit_hi) = t_near;
           break;
         }

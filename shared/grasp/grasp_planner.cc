@@ -385,11 +385,11 @@ Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_
       if (margin <= 0) continue;
       // Torque when lifting: the hand's centre line should pass near the object's centroid.
       const double offset = (g.centre - all_centroid).norm();
-      // Contacts at the default depth unless another height is clearly better (a little, for ties).
+      // Contacts at the default depth unless another height is clearly better: the same grasp found
+      // at several heights (equal but for rounding) is taken at the default one.
       const double quality = margin / cone - offset / 50.0 - 0.2 * g.width_mm / o.hand.max_aperture_mm -
                              0.05 * std::abs(contact_z - default_z) / height;
-      // Ties (the same grasp at several heights, equal but for rounding) keep the first: the default height.
-      if (found && quality <= best.quality + 1e-9) continue;
+      if (found && quality <= best.quality) continue;
       found = true;
       best.quality = quality;
       best.width_mm = g.width_mm;
