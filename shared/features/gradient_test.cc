@@ -3,6 +3,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <vector>
+
 #include "shared/features/analytic_images.h"
 
 namespace idi {
@@ -31,6 +35,72 @@ TEST(GradientTest, CannyMarksOneColumnAtAVerticalEdge) {
   // The gradient points across the edge, with magnitude contrast / (sqrt(2 pi) sigma_total).
   const double mag = std::sqrt(static_cast<double>(g.mag2.at<float>(24, 30)));
   EXPECT_NEAR(mag, 120 / (std::sqrt(2 * 3.14159265) * std::sqrt(1.0 + 1.0 + 1.0 / 12 + 1.0 / 3)), 4.0);
+}
+
+// The Canny mask, pixel for pixel, equals the textbook definition written out plainly here: a pixel
+// is kept when its magnitude passes the low threshold and is a maximum across the edge (one of four
+// sectors by the gradient direction), and it is connected through kept pixels to one above the high
+// threshold. The image (a noisy disc and a tilted square, 67 px wide so rows do not split into
+// whole SIMD groups) has edges in every direction and noise pixels near both thresholds.
+TEST(GradientTest, CannyMaskIsTheTextbookDefinitionOnEveryPixel) {
+  cv::Mat scene(53, 67, CV_32F, cv::Scalar(90));
+  cv::circle(scene, cv::Point(22, 25), 15, cv::Scalar(170), cv::FILLED, cv::LINE_AA);
+  const std::vector<cv::Point> square = {{44, 8}, {62, 17}, {53, 35}, {35, 26}};
+  cv::fillConvexPoly(scene, square, cv::Scalar(30), cv::LINE_AA);
+  const cv::Mat img = analytic::Quantize(scene, 10.0, 11);
+  GradientImages g;
+  ASSERT_TRUE(ComputeGradients(img, 1.0, &g).ok());
+  EdgeMap e;
+  DetectEdges(g, EdgeOptions{}, &e);
+  const int w = img.cols, h = img.rows;
+  const float low2 = static_cast<float>(e.low_threshold * e.low_threshold);
+  const float high2 = static_cast<float>(e.high_threshold * e.high_threshold);
+  const auto mag2 = [&](int x, int y) { return g.mag2.at<float>(y, x); };
+  cv::Mat kept(h, w, CV_8U, cv::Scalar(0));  // 1 candidate, 2 strong
+  for (int y = 1; y < h - 1; ++y) {
+    for (int x = 1; x < w - 1; ++x) {
+      const float gx = g.gx.at<float>(y, x), gy = g.gy.at<float>(y, x), v = mag2(x, y);
+      const double deg = std::atan2(std::fabs(gy), std::fabs(gx)) * 180.0 / 3.14159265358979;
+      int dx = 1, dy = 0;  // the neighbour across the edge on one side (the other is -dx, -dy)
+      if (deg >= 67.5) {
+        dx = 0;
+        dy = 1;
+      } else if (deg > 22.5) {
+        dx = (gx > 0) == (gy > 0) ? 1 : -1;
+        dy = 1;
+      }
+      if (v >= low2 && v > mag2(x - dx, y - dy) && v >= mag2(x + dx, y + dy)) {
+        kept.at<uint8_t>(y, x) = v >= high2 ? 2 : 1;
+      }
+    }
+  }
+  cv::Mat expected(h, w, CV_8U, cv::Scalar(0));
+  std::vector<cv::Point> todo;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      if (kept.at<uint8_t>(y, x) == 2) todo.emplace_back(x, y);
+    }
+  }
+  int strong = static_cast<int>(todo.size());
+  while (!todo.empty()) {
+    const cv::Point p = todo.back();
+    todo.pop_back();
+    if (expected.at<uint8_t>(p) == 1) continue;
+    expected.at<uint8_t>(p) = 1;
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        const cv::Point q(p.x + dx, p.y + dy);
+        if (kept.at<uint8_t>(q) != 0 && expected.at<uint8_t>(q) == 0) todo.push_back(q);
+      }
+    }
+  }
+  ASSERT_GT(strong, 100);  // the test image does exercise both thresholds
+  ASSERT_GT(cv::countNonZero(kept == 1), 10);
+  EXPECT_EQ(cv::countNonZero(e.mask != expected), 0);
+  EXPECT_EQ(static_cast<int>(e.pixels.size()), cv::countNonZero(expected));
+  for (const cv::Point& p : e.pixels) {
+    EXPECT_EQ(expected.at<uint8_t>(p), 1) << p;
+  }
 }
 
 TEST(GradientTest, RejectsBadImagesWithAClearMessage) {
