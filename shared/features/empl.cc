@@ -616,16 +616,35 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
     const double f = best_rss > 0 ? (rss_all - best_rss) / 2.0 / (best_rss / static_cast<double>(n - 4)) : 0.0;
     if (best_k > 0 && best_dang > eo.split_angle_deg * kEmplPi / 180.0 && f > 50.0) {
       const double t_split = 0.5 * (st[idx[best_k - 1]].t + st[idx[best_k]].t);
+      const Vec2d foot_parent = normal * offset, dir_parent = LineDirection(normal);
       std::vector<EmplFitResult> out;
       for (int side = 0; side < 2; ++side) {
+        // Each piece starts from its own total least squares line (not the parent's compromise
+        // between the two), so its fit starts where it will end up; its stretch and limits are the
+        // parent's, carried onto that line.
+        const std::size_t a = side == 0 ? 0 : best_k, b = side == 0 ? best_k : n;
+        double angle;
+        tls(a, b, &angle);
+        const double sw_piece = pre[b][0] - pre[a][0];
+        const Vec2d piece_centre =
+            centre + Vec2d(pre[b][1] - pre[a][1], pre[b][2] - pre[a][2]) / sw_piece;
+        Vec2d piece_normal(-std::sin(angle), std::cos(angle));
+        if (piece_normal.dot(normal) < 0) {
+          piece_normal = -piece_normal;
+        }
+        const double piece_offset = piece_normal.dot(piece_centre);
+        const Vec2d dir_piece = LineDirection(piece_normal), foot_piece = piece_normal * piece_offset;
+        const auto carried = [&](double t_parent) {
+          return std::isfinite(t_parent) ? dir_piece.dot(foot_parent + t_parent * dir_parent - foot_piece) : t_parent;
+        };
         EmplRequest child;
         child.split_depth = request.split_depth + 1;
-        child.segment.normal = normal;
-        child.segment.offset = offset;
-        child.segment.t0 = side == 0 ? st[idx.front()].t : t_split + 1;
-        child.segment.t1 = side == 0 ? t_split - 1 : st[idx.back()].t;
-        child.t_limit_lo = side == 0 ? request.t_limit_lo : t_split + 0.5;
-        child.t_limit_hi = side == 0 ? t_split - 0.5 : request.t_limit_hi;
+        child.segment.normal = piece_normal;
+        child.segment.offset = piece_offset;
+        child.segment.t0 = carried(side == 0 ? st[idx.front()].t : t_split + 1);
+        child.segment.t1 = carried(side == 0 ? t_split - 1 : st[idx.back()].t);
+        child.t_limit_lo = carried(side == 0 ? request.t_limit_lo : t_split + 0.5);
+        child.t_limit_hi = carried(side == 0 ? t_split - 0.5 : request.t_limit_hi);
         for (EmplFitResult& r : Fit(child)) {
           out.push_back(std::move(r));
         }
