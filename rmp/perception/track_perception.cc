@@ -161,6 +161,7 @@ Result<PerceptionResult> TrackPerception::Process(const cv::Mat& left, const cv:
     const auto t0 = Clock::now();
     IDI_ASSIGN_OR_RETURN(view.result, detectors_[static_cast<std::size_t>(v)]->Detect(view.gray));
     st.features_ms[static_cast<std::size_t>(v)] = MsSince(t0);
+    st.feature_stages[static_cast<std::size_t>(v)] = view.result.timing;
     view.adapted = FromFeatureResult(view.result);
     st.lines[static_cast<std::size_t>(v)] = static_cast<int>(view.adapted.features.lines.size());
     st.points[static_cast<std::size_t>(v)] = static_cast<int>(view.adapted.features.points.size());

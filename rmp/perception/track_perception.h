@@ -67,6 +67,7 @@ struct PerceptionStats {
   int edges = 0, strips = 0, pieces = 0;
   Eigen::Vector3d plane = Eigen::Vector3d::Zero();  // z = a + b x + c y, body frame
   std::array<double, 2> features_ms{0, 0};
+  std::array<FeatureTimings, 2> feature_stages{};  // the feature detector's stages, per image
   double total_ms = 0;
 };
 

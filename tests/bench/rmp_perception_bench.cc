@@ -173,6 +173,8 @@ int Main(int argc, char** argv) {
              "features ms (median, both images) | pieces found (median) |\n");
   fmt::print("|---|---|---|---|---|---|---|---|---|\n");
   std::vector<double> every, every_fastest;
+  // Per track: the median time of each feature stage (both images), printed after the main table.
+  std::vector<std::string> stage_rows;
   for (const TrackFrames& tf : all) {
     auto perception = rmp::TrackPerception::Create(tf.config.rig, tf.config.perception);
     if (!perception.ok()) {
@@ -180,6 +182,7 @@ int Main(int argc, char** argv) {
       return 1;
     }
     std::vector<double> ms, features_ms, pieces;
+    std::array<std::vector<double>, 6> stage_ms;  // gradient, edges, hough, empl, points, rest of the pipeline
     std::vector<double> fastest(tf.pairs.size(), 1e300);  // per pair, over the passes
     for (int r = 0; r < repeat; ++r) {
       (*perception)->Reset();
@@ -198,8 +201,19 @@ int Main(int argc, char** argv) {
         f = std::min(f, dt);
         features_ms.push_back(res->stats.features_ms[0] + res->stats.features_ms[1]);
         pieces.push_back(res->stats.pieces);
+        const auto& fs = res->stats.feature_stages;
+        stage_ms[0].push_back(fs[0].gradient_ms + fs[1].gradient_ms);
+        stage_ms[1].push_back(fs[0].edges_ms + fs[1].edges_ms);
+        stage_ms[2].push_back(fs[0].hough_ms + fs[1].hough_ms);
+        stage_ms[3].push_back(fs[0].empl_ms + fs[1].empl_ms);
+        stage_ms[4].push_back(fs[0].points_ms + fs[1].points_ms);
+        stage_ms[5].push_back(dt - res->stats.features_ms[0] - res->stats.features_ms[1]);
       }
     }
+    stage_rows.push_back(fmt::format("| {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |\n", tf.name,
+                                     Percentile(stage_ms[0], 0.5), Percentile(stage_ms[1], 0.5),
+                                     Percentile(stage_ms[2], 0.5), Percentile(stage_ms[3], 0.5),
+                                     Percentile(stage_ms[4], 0.5), Percentile(stage_ms[5], 0.5)));
     every.insert(every.end(), ms.begin(), ms.end());
     every_fastest.insert(every_fastest.end(), fastest.begin(), fastest.end());
     fmt::print("| {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:g} |\n", tf.name, tf.pairs.size(),
@@ -209,6 +223,10 @@ int Main(int argc, char** argv) {
   fmt::print("| all | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | | |\n", total_pairs, Percentile(every, 0.5),
              Percentile(every, 0.99), *std::max_element(every.begin(), every.end()), Percentile(every_fastest, 0.5),
              Percentile(every_fastest, 0.99));
+  fmt::print("\nmedian ms per stage over all passes (both images): gradients, Canny edges, Hough, EMPL fits and "
+             "merges, IDI points, then stereo matching, triangulation and the track model\n\n"
+             "| track | gradients | edges | Hough | EMPL | IDI points | stereo and track |\n|---|---|---|---|---|---|---|\n");
+  for (const std::string& row : stage_rows) fmt::print("{}", row);
   fmt::print("\nmedian {:.2f} ms, p99 {:.2f} ms per stereo pair over all passes; each pair's fastest pass: median {:.2f} ms, "
              "p99 {:.2f} ms (goal: 8 and 15 ms)\n",
              Percentile(every, 0.5), Percentile(every, 0.99), Percentile(every_fastest, 0.5), Percentile(every_fastest, 0.99));
