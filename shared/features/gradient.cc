@@ -249,9 +249,8 @@ void DetectEdges(const GradientImages& g, const EdgeOptions& options, EdgeMap* e
     }
   }
   // Drop the unconnected candidates.
-  cv::Mat strong;
-  cv::compare(edges->mask, 1, strong, cv::CMP_EQ);  // 255 where connected
-  cv::bitwise_and(strong, 1, edges->mask);
+  cv::compare(edges->mask, 1, edges->mask, cv::CMP_EQ);  // 255 where connected, in place
+  cv::bitwise_and(edges->mask, 1, edges->mask);
 }
 
 }  // namespace idi
