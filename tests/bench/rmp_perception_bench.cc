@@ -7,9 +7,10 @@
 // up to 5 degrees (seeded) the way a driving vehicle sits on it. Then this process is pinned to one
 // CPU, OpenCV to one thread, and every pair goes through TrackPerception::Process (EMPL lines and
 // IDI points in both images, stereo correspondence, triangulation, ground plane, tape geometry) in
-// travel order, `--repeat` times. Reports the median, p99 and maximum per pair, per track and over
-// all, the same over each pair's fastest pass (a virtual machine's neighbours make single timings
-// noisy; the fastest pass is the work itself), and the feature stage's share.
+// travel order, `--repeat` times, each pass over all tracks before the next. Reports the median, p99
+// and maximum per pair, per track and over all, the same over each pair's fastest pass (a virtual
+// machine's neighbours make single timings noisy; the fastest pass is the work itself), the median
+// of each feature stage, and the thread's CPU time.
 //
 // Run: build/<dir>/tests/bench/rmp_perception_bench [--tracks-dir rmp/app/tracks] [--spacing-m 0.25]
 //        [--repeat 3] [--cpu 0]
@@ -24,6 +25,7 @@
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <random>
 #include <string>
@@ -181,54 +183,72 @@ int Main(int argc, char** argv) {
              "features ms (median, both images) | pieces found (median) |\n");
   fmt::print("|---|---|---|---|---|---|---|---|---|\n");
   std::vector<double> every, every_fastest, every_cpu;
-  // Per track: the median time of each feature stage (both images), printed after the main table.
-  std::vector<std::string> stage_rows;
-  for (const TrackFrames& tf : all) {
-    auto perception = rmp::TrackPerception::Create(tf.config.rig, tf.config.perception);
+  // What each track collects over the passes.
+  struct TrackTimes {
+    std::unique_ptr<rmp::TrackPerception> perception;
+    std::vector<double> ms, features_ms, pieces;
+    std::array<std::vector<double>, 6> stage_ms;  // gradient, edges, hough, empl, points, rest of the pipeline
+    std::vector<double> fastest;                  // per pair, over the passes
+  };
+  std::vector<TrackTimes> times(all.size());
+  for (std::size_t k = 0; k < all.size(); ++k) {
+    auto perception = rmp::TrackPerception::Create(all[k].config.rig, all[k].config.perception);
     if (!perception.ok()) {
       fmt::print(stderr, "{}\n", perception.status().ToString());
       return 1;
     }
-    std::vector<double> ms, features_ms, pieces;
-    std::array<std::vector<double>, 6> stage_ms;  // gradient, edges, hough, empl, points, rest of the pipeline
-    std::vector<double> fastest(tf.pairs.size(), 1e300);  // per pair, over the passes
-    for (int r = 0; r < repeat; ++r) {
-      (*perception)->Reset();
+    times[k].perception = std::move(*perception);
+    times[k].fastest.assign(all[k].pairs.size(), 1e300);
+  }
+  // Each pass goes over every track before the next one starts, so that a slow spell of the
+  // machine (seconds long on a shared virtual machine) does not fall on every pass of one track.
+  for (int r = 0; r < repeat; ++r) {
+    for (std::size_t k = 0; k < all.size(); ++k) {
+      const TrackFrames& tf = all[k];
+      TrackTimes& tt = times[k];
+      tt.perception->Reset();
       int64_t t_ns = 0;
       for (const Pair& p : tf.pairs) {
         t_ns += 66'666'667;
         const double cpu0 = ThreadCpuMs();
         const auto t0 = std::chrono::steady_clock::now();
-        auto res = (*perception)->Process(p.left, p.right, t_ns);
+        auto res = tt.perception->Process(p.left, p.right, t_ns);
         const double dt = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
         every_cpu.push_back(ThreadCpuMs() - cpu0);
         if (!res.ok()) {
           fmt::print(stderr, "{}: {}\n", tf.name, res.status().ToString());
           return 1;
         }
-        ms.push_back(dt);
-        double& f = fastest[static_cast<std::size_t>(&p - tf.pairs.data())];
+        tt.ms.push_back(dt);
+        double& f = tt.fastest[static_cast<std::size_t>(&p - tf.pairs.data())];
         f = std::min(f, dt);
-        features_ms.push_back(res->stats.features_ms[0] + res->stats.features_ms[1]);
-        pieces.push_back(res->stats.pieces);
+        tt.features_ms.push_back(res->stats.features_ms[0] + res->stats.features_ms[1]);
+        tt.pieces.push_back(res->stats.pieces);
         const auto& fs = res->stats.feature_stages;
-        stage_ms[0].push_back(fs[0].gradient_ms + fs[1].gradient_ms);
-        stage_ms[1].push_back(fs[0].edges_ms + fs[1].edges_ms);
-        stage_ms[2].push_back(fs[0].hough_ms + fs[1].hough_ms);
-        stage_ms[3].push_back(fs[0].empl_ms + fs[1].empl_ms);
-        stage_ms[4].push_back(fs[0].points_ms + fs[1].points_ms);
-        stage_ms[5].push_back(dt - res->stats.features_ms[0] - res->stats.features_ms[1]);
+        tt.stage_ms[0].push_back(fs[0].gradient_ms + fs[1].gradient_ms);
+        tt.stage_ms[1].push_back(fs[0].edges_ms + fs[1].edges_ms);
+        tt.stage_ms[2].push_back(fs[0].hough_ms + fs[1].hough_ms);
+        tt.stage_ms[3].push_back(fs[0].empl_ms + fs[1].empl_ms);
+        tt.stage_ms[4].push_back(fs[0].points_ms + fs[1].points_ms);
+        tt.stage_ms[5].push_back(dt - res->stats.features_ms[0] - res->stats.features_ms[1]);
       }
     }
+  }
+  // Per track: the median time of each feature stage (both images), printed after the main table.
+  std::vector<std::string> stage_rows;
+  for (std::size_t k = 0; k < all.size(); ++k) {
+    const TrackFrames& tf = all[k];
+    const TrackTimes& tt = times[k];
     stage_rows.push_back(fmt::format("| {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |\n", tf.name,
-                                     Percentile(stage_ms[0], 0.5), Percentile(stage_ms[1], 0.5),
-                                     Percentile(stage_ms[2], 0.5), Percentile(stage_ms[3], 0.5),
-                                     Percentile(stage_ms[4], 0.5), Percentile(stage_ms[5], 0.5)));
-    every.insert(every.end(), ms.begin(), ms.end());
-    every_fastest.insert(every_fastest.end(), fastest.begin(), fastest.end());
+                                     Percentile(tt.stage_ms[0], 0.5), Percentile(tt.stage_ms[1], 0.5),
+                                     Percentile(tt.stage_ms[2], 0.5), Percentile(tt.stage_ms[3], 0.5),
+                                     Percentile(tt.stage_ms[4], 0.5), Percentile(tt.stage_ms[5], 0.5)));
+    every.insert(every.end(), tt.ms.begin(), tt.ms.end());
+    every_fastest.insert(every_fastest.end(), tt.fastest.begin(), tt.fastest.end());
     fmt::print("| {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:g} |\n", tf.name, tf.pairs.size(),
-               Percentile(ms, 0.5), Percentile(ms, 0.99), *std::max_element(ms.begin(), ms.end()),
-               Percentile(fastest, 0.5), Percentile(fastest, 0.99), Percentile(features_ms, 0.5), Percentile(pieces, 0.5));
+               Percentile(tt.ms, 0.5), Percentile(tt.ms, 0.99), *std::max_element(tt.ms.begin(), tt.ms.end()),
+               Percentile(tt.fastest, 0.5), Percentile(tt.fastest, 0.99), Percentile(tt.features_ms, 0.5),
+               Percentile(tt.pieces, 0.5));
   }
   fmt::print("| all | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | | |\n", total_pairs, Percentile(every, 0.5),
              Percentile(every, 0.99), *std::max_element(every.begin(), every.end()), Percentile(every_fastest, 0.5),
