@@ -361,6 +361,45 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
   Vec2d centre = Vec2d::Zero();
   std::size_t run_begin = 0, run_end = 0;
   const int window = std::max(1, static_cast<int>(std::lround(eo.threshold_window_px)));
+  // A curved silhouette is not a line (§7.9.1): a significant quadratic in the residuals along the
+  // run. Tested on every iteration's fit: a run that is curved stays curved when the line is
+  // refined (growing only adds to the bend), so it is given up at once instead of refitted.
+  const auto curved = [&]() {
+    const Vec2d nn(std::cos(fit.theta), std::sin(fit.theta)), dd(-nn.y(), nn.x());
+    double m[5] = {0, 0, 0, 0, 0}, b[3] = {0, 0, 0};  // sums of w t^k and of w r t^k
+    double tmin = 1e18, tmax = -1e18;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const double t = dd.dot(pts[i] - centre), r = nn.dot(pts[i] - centre) - fit.e;
+      const double w = wts[i], t2 = t * t;
+      m[0] += w;
+      m[1] += w * t;
+      m[2] += w * t2;
+      m[3] += w * t2 * t;
+      m[4] += w * t2 * t2;
+      b[0] += w * r;
+      b[1] += w * r * t;
+      b[2] += w * r * t2;
+      tmin = std::min(tmin, t);
+      tmax = std::max(tmax, t);
+    }
+    Eigen::Matrix3d ata;
+    ata << m[0], m[1], m[2], m[1], m[2], m[3], m[2], m[3], m[4];
+    const Eigen::Vector3d q = ata.ldlt().solve(Eigen::Vector3d(b[0], b[1], b[2]));
+    double rss = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const double t = dd.dot(pts[i] - centre), r = nn.dot(pts[i] - centre) - fit.e;
+      const double res = r - (q(0) + q(1) * t + q(2) * t * t);
+      rss += wts[i] * res * res;
+    }
+    const double var = rss / std::max(1.0, static_cast<double>(pts.size()) - 3.0);
+    const Eigen::Matrix3d inv = ata.inverse();
+    const double sigma_c = std::sqrt(std::max(0.0, inv(2, 2) * var));
+    const double half = 0.5 * (tmax - tmin);
+    const double sagitta = std::fabs(q(2)) * half * half;
+    const double radius = std::fabs(q(2)) > 0 ? 0.5 / std::fabs(q(2)) : 1e18;
+    return q.allFinite() && radius < eo.curve_max_radius_px && sagitta > eo.curve_min_sagitta_px &&
+           std::fabs(q(2)) > 5.0 * sigma_c;
+  };
   for (int iter = 0; iter < eo.max_iterations; ++iter) {
     double lo = std::max(ta - gap - 2, request.t_limit_lo);
     double hi = std::min(tb + gap + 2, request.t_limit_hi);
@@ -499,6 +538,9 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
         break;
       }
     }
+    if (curved()) {
+      return {};
+    }
     const Vec2d new_normal(std::cos(fit.theta), std::sin(fit.theta));
     const double new_offset = new_normal.dot(centre) + fit.e;
     const double change = std::fabs(WrapHalfPi(std::atan2(new_normal.y(), new_normal.x()) -
@@ -529,41 +571,6 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
     for (Station& s : st) {
       s.outlier = false;
     }
-  }
-
-  // A curved silhouette is not a line (§7.9.1): quadratic in the residuals along the segment.
-  {
-    const Vec2d nn(std::cos(fit.theta), std::sin(fit.theta)), dd(-nn.y(), nn.x());
-    Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d atb = Eigen::Vector3d::Zero();
-    double tmin = 1e18, tmax = -1e18;
-    for (std::size_t i = 0; i < pts.size(); ++i) {
-      const double t = dd.dot(pts[i] - centre), r = nn.dot(pts[i] - centre) - fit.e;
-      const Eigen::Vector3d row(1.0, t, t * t);
-      ata += wts[i] * row * row.transpose();
-      atb += wts[i] * r * row;
-      tmin = std::min(tmin, t);
-      tmax = std::max(tmax, t);
-    }
-    const Eigen::Vector3d q = ata.ldlt().solve(atb);
-    double rss = 0, sw = 0;
-    for (std::size_t i = 0; i < pts.size(); ++i) {
-      const double t = dd.dot(pts[i] - centre), r = nn.dot(pts[i] - centre) - fit.e;
-      const double res = r - (q(0) + q(1) * t + q(2) * t * t);
-      rss += wts[i] * res * res;
-      sw += wts[i];
-    }
-    const double var = rss / std::max(1.0, static_cast<double>(pts.size()) - 3.0);
-    const Eigen::Matrix3d inv = ata.inverse();
-    const double sigma_c = std::sqrt(std::max(0.0, inv(2, 2) * var));
-    const double half = 0.5 * (tmax - tmin);
-    const double sagitta = std::fabs(q(2)) * half * half;
-    const double radius = std::fabs(q(2)) > 0 ? 0.5 / std::fabs(q(2)) : 1e18;
-    if (q.allFinite() && radius < eo.curve_max_radius_px && sagitta > eo.curve_min_sagitta_px &&
-        std::fabs(q(2)) > 5.0 * sigma_c) {
-      return {};
-    }
-    (void)sw;
   }
 
   // False merge (§8.8.2 "false augmented EMPL segment"): two edges that nearly line up. Test every
