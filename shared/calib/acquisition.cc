@@ -5,6 +5,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <queue>
 #include <random>
 
@@ -55,7 +56,8 @@ Status PlanOptions::Check() const {
 }
 
 Status AimLoopOptions::Check() const {
-  if (!(tolerance_mm > 0) || max_iterations <= 0 || !(max_step_rad > 0) || !(limit_margin_rad >= 0)) {
+  if (!(tolerance_mm > 0) || max_iterations <= 0 || !(max_step_rad > 0) || !(limit_margin_rad >= 0) ||
+      final_corrections < 0) {
     return InvalidArgument("closed-loop aiming: invalid options");
   }
   return Status::Ok();
@@ -223,6 +225,37 @@ std::optional<Vec2d> SpotOnPlane(const ParamSet& robot, const ParamSet& laser, c
   return Vec2d(o.x() + s * d.x(), o.y() + s * d.y());
 }
 
+namespace {
+
+// Of the 2^6 count combinations around `wanted` (each joint rounded down or up), the one whose spot
+// shift from `current`, by the Jacobian, is nearest `error`.
+Joints NearestCountsForSpot(const Joints& wanted, const Joints& current, const Eigen::Matrix<double, 2, 6>& j,
+                            const Vec2d& error) {
+  std::array<double, 6> lo{}, step{};
+  for (std::size_t k = 0; k < 6; ++k) {
+    step[k] = 1.0 / (kRx130CountsPerDeg[k] * kDegPerRad);
+    lo[k] = std::floor(wanted[k] / step[k]) * step[k];
+  }
+  Joints best = wanted;
+  double best_miss = std::numeric_limits<double>::infinity();
+  for (unsigned mask = 0; mask < 64; ++mask) {
+    Joints c;
+    Eigen::Matrix<double, 6, 1> d;
+    for (std::size_t k = 0; k < 6; ++k) {
+      c[k] = lo[k] + (((mask >> k) & 1u) != 0 ? step[k] : 0.0);
+      d(static_cast<Eigen::Index>(k)) = c[k] - current[k];
+    }
+    const double miss = (error - j * d).squaredNorm();
+    if (miss < best_miss) {
+      best_miss = miss;
+      best = c;
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
 Result<AimLoopResult> AimClosedLoop(const ParamSet& robot, const ParamSet& laser, const Rigid3d& base_from_plane,
                                     const Vec2d& target_on_plane, const Joints& start, const JointLimits& limits,
                                     const JointMover& move, const SpotObserver& observe, const AimLoopOptions& o) {
@@ -243,15 +276,22 @@ Result<AimLoopResult> AimClosedLoop(const ParamSet& robot, const ParamSet& laser
     if (step > o.max_step_rad) dq *= o.max_step_rad / step;
     Joints next = out.reading;
     for (std::size_t k = 0; k < 6; ++k) next[k] += dq(static_cast<Eigen::Index>(k));
-    return move(Clamp(next, limits, o.limit_margin_rad));
+    next = Clamp(next, limits, o.limit_margin_rad);
+    if (o.round_to_encoder_counts) next = NearestCountsForSpot(next, out.reading, *j, error);
+    return move(next);
   };
   for (out.iterations = 0; out.iterations < o.max_iterations; ++out.iterations) {
     IDI_ASSIGN_OR_RETURN(const Vec2d spot, observe());
     const Vec2d error = target_on_plane - spot;
     out.last_error_mm = error.norm();
     if (out.last_error_mm <= o.tolerance_mm) {
-      if (o.final_correction) {
-        IDI_ASSIGN_OR_RETURN(out.reading, correct(error));
+      Vec2d e = error;
+      for (int c = 0; c < o.final_corrections; ++c) {
+        if (c > 0) {
+          IDI_ASSIGN_OR_RETURN(const Vec2d again, observe());
+          e = target_on_plane - again;
+        }
+        IDI_ASSIGN_OR_RETURN(out.reading, correct(e));
       }
       return out;
     }

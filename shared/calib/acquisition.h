@@ -65,7 +65,17 @@ struct AimLoopOptions {
   double tolerance_mm = 0.15;     // stop correcting when the observed spot is this close to the target
   int max_iterations = 30;
   double max_step_rad = 0.05;     // largest joint correction per step
-  bool final_correction = true;   // one last correction from the last observation, then record
+  // Corrections after the spot is within tolerance, each from a fresh observation (the last one is
+  // not observed again before recording). The loop's Jacobian comes from the nominal model, so a
+  // correction of e leaves about (J_true - J_nominal) J_nominal^+ e behind; that remainder follows
+  // the direction the loop approached from and would not average out over readings. A second
+  // correction starts from an error that is only camera noise (or encoder rounding), which does.
+  int final_corrections = 2;
+  // The arm realises a command at its encoder counts. When set, each correction is rounded here to the
+  // combination of neighbouring counts (each joint down or up) whose spot the model Jacobian puts
+  // nearest the target. Plain rounding of a correction smaller than a count would leave the spot
+  // where the approach left it, on the same side every time, and so shift the fixed point.
+  bool round_to_encoder_counts = true;
   double limit_margin_rad = 1e-4;
   Status Check() const;
 };

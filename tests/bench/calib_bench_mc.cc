@@ -12,7 +12,9 @@
 // Usage: calib_bench_mc [trials=20] [robot|rail|joint|all] [readings=540]
 // Environment: IDI_MC_SCENARIO=precise|encoder|realistic (robot: only that one), IDI_MC_POOL (candidates
 // per reading), IDI_MC_NEAR (planning cone, deg), IDI_MC_DOPT=1 (D-optimal selection only), IDI_MC_LOOP_TOL
-// (the aiming loop's tolerance, mm),
+// (the aiming loop's tolerance, mm), IDI_MC_FINAL (the loop's corrections after reaching tolerance),
+// IDI_MC_SPOT (the camera's spot noise, mm, replacing the scenario's), IDI_MC_MISS=1 (print each trial's
+// true spot miss per set: mean and RMS over the readings, wall x/y, mm),
 // IDI_MC_WALL_MIN / IDI_MC_WALL_MAX (wall distances, mm).
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -110,6 +112,7 @@ Result<RobotTrial> RunRobotTrial(const Scenario& sc, unsigned seed, int readings
   to.seed = seed;
   to.quantize_joints = sc.quantize;
   to.spot_sigma_mm = sc.spot_sigma;
+  if (const char* e = std::getenv("IDI_MC_SPOT")) to.spot_sigma_mm = std::atof(e);
   to.spot_noise = sc.spot_noise;
   to.rail_repeatability_mm = sc.rail_rep;
   if (const char* e = std::getenv("IDI_MC_WALL_MIN")) to.wall_distance_min_mm = std::atof(e);
@@ -126,7 +129,9 @@ Result<RobotTrial> RunRobotTrial(const Scenario& sc, unsigned seed, int readings
   ao.per_set = readings / 2;
   ao.seed = seed;
   ao.loop.tolerance_mm = sc.loop_tolerance;
+  ao.loop.round_to_encoder_counts = sc.quantize;  // the precise scenario's arm has no encoder counts
   if (const char* e = std::getenv("IDI_MC_LOOP_TOL")) ao.loop.tolerance_mm = std::atof(e);
+  if (const char* e = std::getenv("IDI_MC_FINAL")) ao.loop.final_corrections = std::atoi(e);
   if (const char* e = std::getenv("IDI_MC_POOL")) ao.pool_factor = std::atof(e);
   if (const char* e = std::getenv("IDI_MC_NEAR")) ao.plan.near_deg = std::atof(e);
   if (const char* e = std::getenv("IDI_MC_DOPT")) ao.a_optimal = std::atoi(e) == 0;
@@ -147,6 +152,25 @@ Result<RobotTrial> RunRobotTrial(const Scenario& sc, unsigned seed, int readings
   const Rigid3d base1_from_world = world_from_base(rail.landed.at(0)).Inverse();
   const Vec3d p_base = base1_from_world * p_world;
   const ParamSet truth = calib::PackRobotCalibration(twin->true_robot(arm), twin->true_laser(arm), p_base, tr);
+  if (std::getenv("IDI_MC_MISS")) {
+    Vec2d sum[2] = {Vec2d::Zero(), Vec2d::Zero()};
+    double ss[2] = {0, 0};
+    int cnt[2] = {0, 0};
+    for (const calib::AimReading& rd : acq.data.readings) {
+      const int si = rd.set - 1;
+      const Rigid3d base_from_wall = world_from_base(rail.landed.at(static_cast<std::size_t>(si))).Inverse() * wall.world_from_wall;
+      const auto sp = calib::SpotOnPlane(twin->true_robot(arm), twin->true_laser(arm), base_from_wall, rd.q);
+      if (!sp) continue;
+      const Vec2d m = *sp - acq.targets_on_wall[static_cast<std::size_t>(si)];
+      sum[si] += m;
+      ss[si] += m.squaredNorm();
+      ++cnt[si];
+    }
+    for (int si = 0; si < 2; ++si) {
+      fmt::print("miss set {}: mean ({:.2e}, {:.2e}) rms {:.2e} n {}\n", si + 1, sum[si].x() / cnt[si], sum[si].y() / cnt[si],
+                 std::sqrt(ss[si] / cnt[si]), cnt[si]);
+    }
+  }
   RobotTrial t;
   const int n = calib::kRobotCalibrationUnknowns;
   t.error.resize(n);
