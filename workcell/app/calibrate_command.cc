@@ -97,7 +97,32 @@ Status SavePlots(const std::string& dir, const std::string& prefix, const std::v
   return sf.SavePng(dir + "/" + prefix + "_spread.png");
 }
 
-nlohmann::json RobotReport(const calib::RobotCalibrationResult& r, const calib::RobotCalibrationData& data) {
+// What the uncertainty of the known distance D does to each parameter (§4.4.3). D is the model's only
+// scale: an error of D stretches every length in proportion to its size (on the RX-130 the long links
+// a3 and d4, and the point), while the angles do not move.
+// Per parameter: the std that D's uncertainty alone gives, and its share of the reported variance.
+struct ScaleShare {
+  std::string name, unit;
+  double std_from_distance = 0, std_total = 0, share = 0;
+};
+std::vector<ScaleShare> ScaleShares(const calib::RobotCalibrationResult& r, double distance_sigma_mm) {
+  std::vector<ScaleShare> out;
+  if (r.distance_sensitivity.size() != static_cast<Eigen::Index>(r.params.size())) return out;
+  for (std::size_t i = 0; i < r.params.size(); ++i) {
+    ScaleShare s;
+    s.name = r.params.spec(i).Key();
+    s.unit = std::string(UnitSuffix(r.params.spec(i).unit));
+    s.std_from_distance = std::abs(ToFileUnits(r.params.spec(i).unit, r.distance_sensitivity(static_cast<Eigen::Index>(i)))) *
+                          distance_sigma_mm;
+    s.std_total = r.params.file_stddev(i);
+    s.share = std::isfinite(s.std_total) && s.std_total > 0 ? std::min(1.0, std::pow(s.std_from_distance / s.std_total, 2)) : 0.0;
+    out.push_back(s);
+  }
+  return out;
+}
+
+nlohmann::json RobotReport(const calib::RobotCalibrationResult& r, const calib::RobotCalibrationData& data,
+                           double distance_sigma_mm) {
   const std::vector<ParamSpec> specs = calib::RobotCalibrationSpecs();
   std::vector<std::string> names;
   for (const ParamSpec& s : specs) names.push_back(s.Key());
@@ -136,6 +161,16 @@ nlohmann::json RobotReport(const calib::RobotCalibrationResult& r, const calib::
                           {"undetermined", undetermined},
                           {"correlated_above_0_95", corr}};
   j["params"] = ParamsJson(r.params);
+  nlohmann::json scale = nlohmann::json::array();
+  for (const ScaleShare& sh : ScaleShares(r, distance_sigma_mm)) {
+    scale.push_back({{"param", sh.name}, {"unit", sh.unit}, {"std_from_distance", sh.std_from_distance},
+                     {"std_total", sh.std_total}, {"share_of_variance", sh.share}});
+  }
+  j["scale_from_distance"] = {
+      {"distance_sigma_mm", distance_sigma_mm},
+      {"note", "D, the known distance (two rail moves), is the model's only scale: its uncertainty stretches every "
+               "length in proportion to its size (the long links and the point) and leaves the angles alone"},
+      {"params", scale}};
   return j;
 }
 
@@ -206,7 +241,19 @@ Status RunCalibrateRobot(const RobotCommandOptions& o) {
   spdlog::info("wrote {}", o.out);
 
   const nlohmann::json acquisition = report.contains("acquisition") ? report["acquisition"] : nlohmann::json();
-  report = RobotReport(r, data);
+  report = RobotReport(r, data, co.noise.distance_sigma_mm);
+  {
+    std::string dominated;
+    for (const ScaleShare& sh : ScaleShares(r, co.noise.distance_sigma_mm)) {
+      if (sh.unit == "mm" && sh.share >= 0.5) {
+        dominated += fmt::format("{}{} ({:.0f} %)", dominated.empty() ? "" : ", ", sh.name, 100 * sh.share);
+      }
+    }
+    if (!dominated.empty()) {
+      spdlog::info("the known distance D (std {:.3f} mm, the model's only scale) sets most of the uncertainty of: {}",
+                   co.noise.distance_sigma_mm, dominated);
+    }
+  }
   if (!acquisition.is_null()) report["acquisition"] = acquisition;
   std::vector<std::pair<std::string, calib::SpreadStats>> spreads;
   nlohmann::json validation = nlohmann::json::array();

@@ -153,6 +153,27 @@ TEST_F(CalibrateCommandTest, SimRunWritesFilesThatTheFileRunReproduces) {
   EXPECT_TRUE(j["params"].contains("alpha2_deg"));
   EXPECT_TRUE(j["params"]["point_x_mm"].contains("std"));
   EXPECT_GT(j["validation"][0]["nominal"]["mean_mm"].get<double>(), j["validation"][0]["calibrated"]["mean_mm"].get<double>());
+  // D is the only scale: a change of D stretches each length by length / D, so the std it gives a3 and
+  // d4 (about 625 mm) is their length / D times its own std, and it makes most of their variance; the
+  // angles do not scale.
+  const nlohmann::json& scale = j["scale_from_distance"];
+  const double sd_d = scale["distance_sigma_mm"].get<double>(), d = j["distance_mm"].get<double>();
+  EXPECT_NEAR(sd_d, 0.1414, 1e-9);
+  ASSERT_EQ(scale["params"].size(), 27u);
+  int lengths_checked = 0;
+  for (const nlohmann::json& p : scale["params"]) {
+    const std::string name = p["param"].get<std::string>();
+    if (name == "a3_mm" || name == "d4_mm") {
+      const double length = j["params"][name]["value"].get<double>();
+      EXPECT_NEAR(p["std_from_distance"].get<double>(), std::abs(length) / d * sd_d, 0.03 * std::abs(length) / d * sd_d) << name;
+      EXPECT_GT(p["share_of_variance"].get<double>(), 0.5) << name;
+      ++lengths_checked;
+    }
+    if (p["unit"] == "deg") {
+      EXPECT_LT(p["share_of_variance"].get<double>(), 0.01) << name;
+    }
+  }
+  EXPECT_EQ(lengths_checked, 2);
   // The YAML loads as an arm model, and the saved observations calibrate again from the file.
   const auto arm = LoadRobotCalibration(P("robot.yaml"));
   ASSERT_TRUE(arm.ok()) << arm.status().ToString();
