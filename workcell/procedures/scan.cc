@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <random>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -220,6 +221,38 @@ void Progress(const ScanOptions& o, double f, const std::string& what) {
 
 }  // namespace
 
+// Stray points: a floor tile's or the table rim's corner matched wrongly across wide baselines lands
+// inside the object region, alone. The object is the largest group of points joined by edges; a point
+// joined by edges to no other point of the region is kept when it lies within object_link_mm of that
+// group's box (a corner whose edges were not reconstructed; the box reaches down to the table, so a
+// bottom corner under the top face stays), else it is dropped: it must not widen the grasp's silhouette.
+std::vector<int> DropStrayPoints(const StructureModel& model, const std::vector<int>& object_points, const ScanOptions& o) {
+  if (object_points.size() <= 3) return object_points;
+  std::vector<int> parent(model.points.size());
+  for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = static_cast<int>(i);
+  auto root = [&](int i) {
+    while (parent[static_cast<std::size_t>(i)] != i) i = parent[static_cast<std::size_t>(i)];
+    return i;
+  };
+  for (const auto& [a, b] : model.edges) parent[static_cast<std::size_t>(root(a))] = root(b);
+  std::map<int, int> size;  // group root -> its points in the region
+  for (const int i : object_points) ++size[root(i)];
+  const auto biggest = std::max_element(size.begin(), size.end(), [](const auto& x, const auto& y) { return x.second < y.second; });
+  if (biggest->second < 3) return object_points;
+  Eigen::AlignedBox3d box;
+  for (const int i : object_points) {
+    if (root(i) == biggest->first) box.extend(model.points[static_cast<std::size_t>(i)].xyz);
+  }
+  box.min().array() -= o.object_link_mm;
+  box.max().array() += o.object_link_mm;
+  box.min().z() = std::min(box.min().z(), o.table_centre_world.z() - o.table_tolerance_mm);
+  std::vector<int> kept;
+  for (const int i : object_points) {
+    if (size[root(i)] > 1 || box.contains(model.points[static_cast<std::size_t>(i)].xyz)) kept.push_back(i);
+  }
+  return kept;
+}
+
 Status ScanOptions::Check() const {
   if (!table_centre_world.allFinite()) return InvalidArgument("scan: the table centre must be finite");
   if (!(table_radius_mm > 0)) return InvalidArgument("scan: the table radius must be positive");
@@ -229,6 +262,12 @@ Status ScanOptions::Check() const {
   }
   if (!(object_region_radius_mm > 0 && object_region_height_mm > 0)) {
     return InvalidArgument("scan: the object region's radius and height must be positive");
+  }
+  if (!(station_step_deg > 0 && station_step_deg <= 90) || station_retries < 0) {
+    return InvalidArgument("scan: station_step_deg must be in (0, 90] and station_retries >= 0");
+  }
+  if (!(object_link_mm >= 0) || !std::isfinite(object_link_mm)) {
+    return InvalidArgument("scan: object_link_mm must be a finite distance >= 0");
   }
   if (!(view_distance_mm > 200 && view_distance_mm < 3000)) {
     return InvalidArgument(fmt::format("scan: view distance {} mm is outside (200, 3000)", view_distance_mm));
@@ -354,26 +393,48 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
     if (IsCancelled(o)) return cancelled();
     Progress(o, 0.05 + 0.4 * static_cast<double>(s) / static_cast<double>(o.azimuths_deg.size()),
              fmt::format("station {}/{} (azimuth {:.0f} deg)", s + 1, o.azimuths_deg.size(), o.azimuths_deg[s]));
-    const double az = DegToRad(o.azimuths_deg[s]);
-    const Vec3d v(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), -std::sin(el));
-    const Vec3d mid = aim - o.view_distance_mm * v;
-    const Rigid3d world_from_tcf = WorldFromTcfForView(mid, v);
-    // Robot 1's rail position: the base a little behind the head along the rail, else nearby positions.
+    // The station's head pose; a station the arm cannot reach is moved towards azimuth 0 in steps of
+    // station_step_deg (up to station_retries times), since a narrower view beats no view.
     std::optional<std::pair<double, Joints>> pose;
     Status last = NotFound("no rail position tried");
-    for (const double shift : {0.0, -250.0, 250.0, -500.0, 500.0, -750.0}) {
-      const double rail = std::clamp(world_from_tcf.translation.x() - 250.0 + shift, 0.0, o.rail1_max_mm);
-      const Rigid3d base_from_tcf = WorldFromBase(c.robot1, 0, c.psi, rail).Inverse() * world_from_tcf;
-      Joints start = q_prev;
-      start[0] = std::atan2(base_from_tcf.translation.y(), base_from_tcf.translation.x());
-      auto q = SolveArm(c.robot1.robot, start, base_from_tcf, {JointsFromDeg({0, -40, 110, 0, 20, 0})});
-      if (q.ok()) {
-        pose = std::make_pair(rail, *q);
-        break;
+    double az_deg = o.azimuths_deg[s];
+    for (int retry = 0; !pose && retry <= o.station_retries; ++retry) {
+      if (retry > 0) {
+        const double inward = std::min(o.station_step_deg, std::abs(az_deg));
+        if (inward <= 0) break;
+        const double before = az_deg;
+        az_deg -= std::copysign(inward, az_deg);
+        spdlog::warn("scan: station {} cannot be reached at azimuth {:.0f} deg; trying {:.0f} deg", s + 1, before, az_deg);
       }
-      last = q.status();
+      const double az = DegToRad(az_deg);
+      const Vec3d v(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), -std::sin(el));
+      const Vec3d mid = aim - o.view_distance_mm * v;
+      const Rigid3d world_from_tcf = WorldFromTcfForView(mid, v);
+      // Robot 1's rail position: the base a little behind the head along the rail, else nearby positions.
+      for (const double shift : {0.0, -250.0, 250.0, -500.0, 500.0, -750.0}) {
+        const double rail = std::clamp(world_from_tcf.translation.x() - 250.0 + shift, 0.0, o.rail1_max_mm);
+        const Rigid3d base_from_tcf = WorldFromBase(c.robot1, 0, c.psi, rail).Inverse() * world_from_tcf;
+        Joints start = q_prev;
+        start[0] = std::atan2(base_from_tcf.translation.y(), base_from_tcf.translation.x());
+        // Fallback starts facing the view point: the usual elbow-up posture, wrist bent either way, and
+        // steeper and flatter upper arms.
+        std::vector<Joints> fallbacks;
+        for (const auto& deg : {std::array<double, 6>{0, -40, 110, 0, 20, 0}, {0, -40, 110, 0, -20, 0}, {0, -70, 130, 0, 30, 0},
+                                {0, -10, 80, 0, 30, 0}, {0, -40, 110, 90, 20, -90}, {0, -40, 110, -90, 20, 90}}) {
+          Joints f = JointsFromDeg({deg[0], deg[1], deg[2], deg[3], deg[4], deg[5]});
+          f[0] = start[0];
+          fallbacks.push_back(f);
+        }
+        auto q = SolveArm(c.robot1.robot, start, base_from_tcf, fallbacks);
+        if (q.ok()) {
+          pose = std::make_pair(rail, *q);
+          break;
+        }
+        last = q.status();
+      }
     }
     if (!pose) return fail(last, fmt::format("station {}: no reachable head pose", s + 1));
+    const double az_used = az_deg;
     Status st = d.rail1->MoveTo(pose->first, o.move);
     if (st.ok()) st = d.arm1->MoveJoints(pose->second, o.move);
     if (!st.ok()) return fail(st, fmt::format("station {}: moving arm 1", s + 1));
@@ -395,6 +456,7 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
       if (!image.ok()) return fail(image.status(), "grabbing an image");
       ScanView sv;
       sv.station = static_cast<int>(s);
+      sv.azimuth_deg = az_used;
       sv.arm1_q = js->q_rad;
       sv.rail1_mm = rs->position_mm;
       sv.pan_rad = ps->pan_rad;
@@ -439,6 +501,16 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
         rel.z() < o.object_region_height_mm) {
       report.object_points.push_back(static_cast<int>(i));
       object.push_back(p);
+    }
+  }
+  {
+    const std::size_t before = report.object_points.size();
+    report.object_points = DropStrayPoints(model, report.object_points, o);
+    if (report.object_points.size() < before) {
+      spdlog::info("scan: {} stray point(s) in the object region dropped (joined to no other point, away from the object)",
+                   before - report.object_points.size());
+      object.clear();
+      for (const int i : report.object_points) object.push_back(model.points[static_cast<std::size_t>(i)].xyz);
     }
   }
   const Correspondences& cc = report.structure.correspondences;
@@ -601,7 +673,7 @@ nlohmann::json ScanReportJson(const ScanReport& r) {
   for (std::size_t i = 0; i < on_object.size(); ++i) j["points"][i]["object"] = static_cast<bool>(on_object[i]);
   j["views"] = nlohmann::json::array();
   for (const ScanView& v : r.views) {
-    j["views"].push_back({{"name", v.view.name}, {"station", v.station}, {"rail1_mm", v.rail1_mm},
+    j["views"].push_back({{"name", v.view.name}, {"station", v.station}, {"azimuth_deg", v.azimuth_deg}, {"rail1_mm", v.rail1_mm},
                           {"pan_deg", RadToDeg(v.pan_rad)}, {"tilt_deg", RadToDeg(v.tilt_rad)}});
   }
   if (r.cylinder) {

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdlib>
 
 #include "shared/util/units.h"
@@ -31,7 +32,10 @@ TEST(ScanTest, BoxIsReconstructedPickedAndPlaced) {
   if (const char* dir = std::getenv("IDI_SCAN_TEST_OUT")) o.out_dir = dir;  // to look at the views
   auto r = ScanAndPick(d, twin.TrueCalibration(), o);
   ASSERT_TRUE(r.ok()) << r.status().ToString();
-  EXPECT_EQ(r->views.size(), 6u);
+  ASSERT_EQ(r->views.size(), 2 * o.azimuths_deg.size());
+  for (const ScanView& v : r->views) {
+    EXPECT_EQ(v.azimuth_deg, o.azimuths_deg[static_cast<std::size_t>(v.station)]) << "every default station is reachable";
+  }
   const ScanTruth t = twin.Evaluate(*r, o);
   EXPECT_GE(t.matched_vertices, 6) << "a box seen from above shows its top four and two or more bottom corners";
   EXPECT_LT(t.mean_vertex_error_mm, 0.3);
@@ -130,6 +134,67 @@ TEST(ScanTest, CancelStopsBeforeTheNextStep) {
   EXPECT_EQ(r.status().code(), StatusCode::kCancelled);
   EXPECT_TRUE(twin.cell().objects()[0].world_from_object.translation.isApprox(
       twin.target_at_start().world_from_object.translation));
+}
+
+// A station out of the arm's reach is moved towards azimuth 0 until it can be reached, and the view
+// records where it was taken; without retries the same station fails and the error names it.
+TEST(ScanTest, UnreachableStationIsMovedInwards) {
+  ScanTwin twin(Twin(sim::ObjectKind::kBox, 0));
+  ScanDevices d = twin.Devices();
+  ScanOptions o = twin.SetupOptions();
+  o.pick = false;
+  // In this cell robot 1 cannot put the head at azimuths 120 and 135 deg (1 m from the table), but can
+  // at 105 deg.
+  o.azimuths_deg = {135, 0};
+  o.station_step_deg = 15;
+  o.station_retries = 3;
+  auto r = ScanAndPick(d, twin.TrueCalibration(), o);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  ASSERT_EQ(r->views.size(), 4u);
+  EXPECT_NEAR(r->views[0].azimuth_deg, 105.0, 1e-9);
+  EXPECT_NEAR(r->views[1].azimuth_deg, 105.0, 1e-9);
+  EXPECT_EQ(r->views[2].azimuth_deg, 0.0);
+  ScanTwin again(Twin(sim::ObjectKind::kBox, 0));
+  ScanDevices d2 = again.Devices();
+  o.station_retries = 0;
+  r = ScanAndPick(d2, again.TrueCalibration(), o);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("station 1"), std::string::npos) << r.status().ToString();
+}
+
+// A wrong match alone in the object region is left out of the object; a corner without edges close to
+// the object, and points joined by an edge, stay.
+TEST(ScanTest, StrayPointsAreDroppedJoinedPointsKept) {
+  ScanOptions o;
+  const Vec3d t = o.table_centre_world;
+  StructureModel m;
+  auto add = [&](const Vec3d& rel) {
+    ModelPoint p;
+    p.id = static_cast<int>(m.points.size());
+    p.xyz = t + rel;
+    m.points.push_back(p);
+    return p.id;
+  };
+  // A box's top face, 100 x 60 mm, 70 mm high, its four edges.
+  for (const auto& [x, y] : std::vector<std::pair<double, double>>{{-50, -30}, {50, -30}, {50, 30}, {-50, 30}}) add(Vec3d(x, y, 70));
+  m.edges = {{0, 1}, {1, 2}, {2, 3}, {0, 3}};
+  const int bottom = add(Vec3d(50, -30, 0));        // a bottom corner, its vertical edge not reconstructed
+  const int near = add(Vec3d(80, 0, 35));           // 30 mm off the top face's box: within object_link_mm
+  const int stray = add(Vec3d(-160, 120, 2));       // the table rim's corner, matched wrongly
+  const int pair_a = add(Vec3d(150, -120, 0)), pair_b = add(Vec3d(150, -60, 0));  // two joined points
+  m.edges.emplace_back(pair_a, pair_b);
+  const int outside = add(Vec3d(0, 0, 500));        // joined to a point outside the region: counts as alone
+  const int far_end = add(Vec3d(400, 400, 0));
+  m.edges.emplace_back(outside, far_end);
+  std::vector<int> region = {0, 1, 2, 3, bottom, near, stray, pair_a, pair_b, outside};
+  const std::vector<int> kept = DropStrayPoints(m, region, o);
+  EXPECT_EQ(kept, (std::vector<int>{0, 1, 2, 3, bottom, near, pair_a, pair_b}));
+  // Too few points to tell the object from a stray: nothing is dropped.
+  EXPECT_EQ(DropStrayPoints(m, {0, stray}, o), (std::vector<int>{0, stray}));
+  o.object_link_mm = 10;  // the near corner is now too far
+  const std::vector<int> tight = DropStrayPoints(m, region, o);
+  EXPECT_EQ(std::count(tight.begin(), tight.end(), near), 0);
+  EXPECT_EQ(std::count(tight.begin(), tight.end(), bottom), 1);
 }
 
 }  // namespace
