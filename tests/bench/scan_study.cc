@@ -3,11 +3,11 @@
 // would use; `idi-workcell scan --sim --out DIR` leaves one in DIR/calibration) or, with --oracle, the
 // twin's true parameters (the scan's own error, calibration error excluded).
 //
-// Per scene: views (6 by default, --stations 4 for 8), reconstruction, grasp, pick; scored against the
+// Per scene: views (8 by default: the scan's four stations), reconstruction, grasp, pick; scored against the
 // twin's truth: corners found within 5 mm, their error, spurious object points, grasp held / object
 // placed, collisions, and the time of features + correspondence + triangulation + bundle adjustment.
 //
-// Usage: scan_study [--calibration DIR | --oracle] [--scenes 10] [--seed 1] [--stations 3] [--object NAME]
+// Usage: scan_study [--calibration DIR | --oracle] [--scenes 10] [--seed 1] [--stations K] [--span DEG] [--object NAME]
 //                   [--elevation DEG] [--distance MM] [--json FILE]
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -35,7 +35,8 @@ double Median(std::vector<double> v) {
 int Main(int argc, char** argv) {
   std::string cal_dir, json_out, only;
   bool oracle = false;
-  int scenes = 10, stations = 3;
+  int scenes = 10, stations = 0;  // 0: the scan's default stations
+  double span_deg = 0;             // > 0: the stations spread over +-span_deg
   double elevation_deg = 0, distance_mm = 0;
   unsigned seed = 1;
   for (int i = 1; i < argc; ++i) {
@@ -52,17 +53,18 @@ int Main(int argc, char** argv) {
     else if (a == "--scenes") scenes = std::atoi(next().c_str());
     else if (a == "--seed") seed = static_cast<unsigned>(std::atoi(next().c_str()));
     else if (a == "--stations") stations = std::atoi(next().c_str());
+    else if (a == "--span") span_deg = std::atof(next().c_str());
     else if (a == "--json") json_out = next();
     else if (a == "--object") only = next();
     else if (a == "--elevation") elevation_deg = std::atof(next().c_str());
     else if (a == "--distance") distance_mm = std::atof(next().c_str());
     else {
-      fmt::print(stderr, "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--seed S] [--stations K] [--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--json FILE]\n");
+      fmt::print(stderr, "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--seed S] [--stations K] [--span DEG] [--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--json FILE]\n");
       return 2;
     }
   }
-  if (scenes < 1 || stations < 1 || stations > 6 || (!oracle && cal_dir.empty())) {
-    fmt::print(stderr, "scan_study: give --calibration DIR or --oracle; scenes >= 1; stations 1..6\n");
+  if (scenes < 1 || stations < 0 || stations > 8 || !(span_deg >= 0 && span_deg <= 120) || (!oracle && cal_dir.empty())) {
+    fmt::print(stderr, "scan_study: give --calibration DIR or --oracle; scenes >= 1; stations 1..8; span 0..120 deg\n");
     return 2;
   }
   spdlog::set_level(spdlog::level::warn);
@@ -107,10 +109,12 @@ int Main(int argc, char** argv) {
       workcell::ScanOptions o = twin.SetupOptions();
       if (elevation_deg > 0) o.elevation_deg = elevation_deg;
       if (distance_mm > 0) o.view_distance_mm = distance_mm;
-      if (stations == 4) o.azimuths_deg = {-35, -12, 12, 35};
-      else if (stations != 3) {
+      if (stations > 0 || span_deg > 0) {
+        // K stations (default: as many as the scan's default) evenly over +-span (default: its span).
+        const double span = span_deg > 0 ? span_deg : std::abs(o.azimuths_deg.front());
+        const int k_count = stations > 0 ? stations : static_cast<int>(o.azimuths_deg.size());
         o.azimuths_deg.clear();
-        for (int k = 0; k < stations; ++k) o.azimuths_deg.push_back(stations == 1 ? 0.0 : -35.0 + 70.0 * k / (stations - 1));
+        for (int k = 0; k < k_count; ++k) o.azimuths_deg.push_back(k_count == 1 ? 0.0 : -span + 2 * span * k / (k_count - 1));
       }
       ++total;
       auto r = workcell::ScanAndPick(d, cal, o);
