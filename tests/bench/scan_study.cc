@@ -13,6 +13,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -48,16 +49,27 @@ int Main(int argc, char** argv) {
       }
       return argv[++i];
     };
+    // A number, or exit 2 naming the option (atof would take "abc" as 0 and run the default).
+    auto number = [&]() -> double {
+      const std::string v = next();
+      char* end = nullptr;
+      const double x = std::strtod(v.c_str(), &end);
+      if (v.empty() || *end != '\0' || !std::isfinite(x)) {
+        fmt::print(stderr, "scan_study: {} needs a number, got '{}'\n", a, v);
+        std::exit(2);
+      }
+      return x;
+    };
     if (a == "--calibration") cal_dir = next();
     else if (a == "--oracle") oracle = true;
-    else if (a == "--scenes") scenes = std::atoi(next().c_str());
-    else if (a == "--seed") seed = static_cast<unsigned>(std::atoi(next().c_str()));
-    else if (a == "--stations") stations = std::atoi(next().c_str());
-    else if (a == "--span") span_deg = std::atof(next().c_str());
+    else if (a == "--scenes") scenes = static_cast<int>(number());
+    else if (a == "--seed") seed = static_cast<unsigned>(number());
+    else if (a == "--stations") stations = static_cast<int>(number());
+    else if (a == "--span") span_deg = number();
     else if (a == "--json") json_out = next();
     else if (a == "--object") only = next();
-    else if (a == "--elevation") elevation_deg = std::atof(next().c_str());
-    else if (a == "--distance") distance_mm = std::atof(next().c_str());
+    else if (a == "--elevation") elevation_deg = number();
+    else if (a == "--distance") distance_mm = number();
     else {
       fmt::print(stderr, "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--seed S] [--stations K] [--span DEG] [--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--json FILE]\n");
       return 2;
