@@ -434,7 +434,6 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
       }
     }
     if (!pose) return fail(last, fmt::format("station {}: no reachable head pose", s + 1));
-    const double az_used = az_deg;
     Status st = d.rail1->MoveTo(pose->first, o.move);
     if (st.ok()) st = d.arm1->MoveJoints(pose->second, o.move);
     if (!st.ok()) return fail(st, fmt::format("station {}: moving arm 1", s + 1));
@@ -456,7 +455,7 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
       if (!image.ok()) return fail(image.status(), "grabbing an image");
       ScanView sv;
       sv.station = static_cast<int>(s);
-      sv.azimuth_deg = az_used;
+      sv.azimuth_deg = az_deg;
       sv.arm1_q = js->q_rad;
       sv.rail1_mm = rs->position_mm;
       sv.pan_rad = ps->pan_rad;
