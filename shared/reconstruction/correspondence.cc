@@ -384,7 +384,7 @@ Result<Correspondences> MatchViews(const std::vector<CorrespondenceView>& views,
           worst = k;
         }
       }
-      if (worst_err <= options.max_reprojection_px) break;
+      if (worst_err <= options.max_track_residual_px) break;
       obs.erase(obs.begin() + static_cast<long>(worst));
       ++out.observations_rejected;
       tp.reset();

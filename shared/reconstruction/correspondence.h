@@ -24,14 +24,21 @@ struct CorrespondenceOptions {
   double segment_margin_px = 3.0;       // slack beyond a line's confirmed segment + extension
   int min_support = 1;                  // topological support needed unless the match is unique
   bool accept_unique_unsupported = true;  // a lone candidate, unique both ways, with the same line count
-  double max_reprojection_px = 1.5;     // track check after triangulation
+  // A triangulated point lands this close to an IDI point of another view (the agreement of other views,
+  // and a track picking up a view it missed).
+  double max_reprojection_px = 1.5;
+  // Track check after triangulation: the worst observation is dropped until every one reprojects within
+  // this. In the twin (scan_study, 40 scenes) a wrong observation chained into a track sits 0.9-1.4 px
+  // off while 99 % of the right ones are within 0.75 px: 0.8 px takes pair precision from 98.3 % to 99.3 %
+  // at the same recall.
+  double max_track_residual_px = 0.8;
   double min_ray_angle_deg = 1.0;       // views closer than this cannot triangulate a track
   // With three or more views, a pair's point match must be confirmed by this many other views (its
   // triangulated point lands on an IDI point there); 0 keeps every pair match.
   int min_agreeing_views = 1;
   bool Check() const {
     return epipolar_tolerance_px > 0 && segment_margin_px >= 0 && min_support >= 0 && max_reprojection_px > 0 &&
-           min_ray_angle_deg >= 0 && min_agreeing_views >= 0;
+           max_track_residual_px > 0 && min_ray_angle_deg >= 0 && min_agreeing_views >= 0;
   }
 };
 

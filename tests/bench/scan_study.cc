@@ -5,10 +5,13 @@
 //
 // Per scene: views (8 by default: the scan's four stations), reconstruction, grasp, pick; scored against the
 // twin's truth: corners found within 5 mm, their error, spurious object points, grasp held / object
-// placed, collisions, and the time of features + correspondence + triangulation + bundle adjustment.
+// placed, collisions, and the time of features + correspondence + triangulation + bundle adjustment; and the
+// correspondence over every view pair: precision and recall of the IDI point matches against the true
+// corners, and the epipolar error of the matched points.
 //
 // Usage: scan_study [--calibration DIR | --oracle] [--scenes 10] [--seed 1] [--stations K] [--span DEG] [--object NAME]
-//                   [--elevation DEG] [--distance MM] [--json FILE]
+//                   [--elevation DEG] [--distance MM] [--json FILE] [--out DIR]
+// --out DIR keeps each scene's run folder (images, regions, overlays, model) in DIR/OBJECT_SCENE.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -16,6 +19,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -34,7 +38,7 @@ double Median(std::vector<double> v) {
 }
 
 int Main(int argc, char** argv) {
-  std::string cal_dir, json_out, only;
+  std::string cal_dir, json_out, only, out_dir;
   bool oracle = false;
   int scenes = 10, stations = 0;  // 0: the scan's default stations
   double span_deg = 0;             // > 0: the stations spread over +-span_deg
@@ -67,11 +71,14 @@ int Main(int argc, char** argv) {
     else if (a == "--stations") stations = static_cast<int>(number());
     else if (a == "--span") span_deg = number();
     else if (a == "--json") json_out = next();
+    else if (a == "--out") out_dir = next();
     else if (a == "--object") only = next();
     else if (a == "--elevation") elevation_deg = number();
     else if (a == "--distance") distance_mm = number();
     else {
-      fmt::print(stderr, "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--seed S] [--stations K] [--span DEG] [--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--json FILE]\n");
+      fmt::print(stderr,
+                 "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--seed S] [--stations K] [--span DEG] "
+                 "[--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--json FILE] [--out DIR]\n");
       return 2;
     }
   }
@@ -100,21 +107,24 @@ int Main(int argc, char** argv) {
                                                                       {"cylinder", sim::ObjectKind::kCylinder}};
   nlohmann::json all = nlohmann::json::array();
   int total = 0, picked = 0, failed_scans = 0;
-  std::vector<double> errors_all, ms_all;
+  std::vector<double> errors_all, ms_all, epi_all;
+  long all_tp = 0, all_fp = 0, all_possible = 0, all_visible = 0;
   double max_err_all = 0;
-  fmt::print("{:9} {:>6} {:>8} {:>9} {:>9} {:>9} {:>7} {:>7} {:>9}\n", "object", "scenes", "corners", "mean mm",
-             "max mm", "spurious", "held", "placed", "ms (med)");
+  fmt::print("{:9} {:>6} {:>8} {:>9} {:>9} {:>9} {:>7} {:>7} {:>9} {:>7} {:>7} {:>7} {:>8}\n", "object", "scenes", "corners",
+             "mean mm", "max mm", "spurious", "held", "placed", "ms (med)", "prec %", "rec %", "vis %", "epi px");
   for (const auto& [name, kind] : kinds) {
     if (!only.empty() && only != name) continue;
     int found = 0, possible = 0, spurious = 0, objpts = 0, held = 0, placed = 0;
     double sum = 0, worst = 0;
     int matched = 0;
-    std::vector<double> ms;
+    long tp = 0, fp = 0, possible_pairs = 0, visible_pairs = 0;
+    std::vector<double> ms, epi;
     for (int s = 0; s < scenes; ++s) {
       workcell::ScanTwinOptions to;
       to.seed = seed;
       to.kind = kind;
       to.scene = static_cast<unsigned>(s);
+      to.keep_truth = true;  // every frame's truth, for the correspondence score
       workcell::ScanTwin twin(to);
       if (oracle) cal = twin.TrueCalibration();
       workcell::ScanDevices d = twin.Devices();
@@ -129,6 +139,8 @@ int Main(int argc, char** argv) {
         for (int k = 0; k < k_count; ++k) o.azimuths_deg.push_back(k_count == 1 ? 0.0 : -span + 2 * span * k / (k_count - 1));
       }
       ++total;
+      if (!out_dir.empty()) o.out_dir = fmt::format("{}/{}_{}", out_dir, name, s);
+      if (!o.out_dir.empty()) std::filesystem::create_directories(o.out_dir);
       auto r = workcell::ScanAndPick(d, cal, o);
       nlohmann::json row = {{"object", name}, {"scene", s}};
       if (!r.ok()) {
@@ -139,6 +151,19 @@ int Main(int argc, char** argv) {
         continue;
       }
       const workcell::ScanTruth t = twin.Evaluate(*r, o);
+      const workcell::CorrespondenceTruth m = twin.EvaluateCorrespondence(*r);
+      if (m.scored) {
+        tp += m.true_matches;
+        fp += m.false_matches;
+        possible_pairs += m.found_in_both;
+        visible_pairs += m.visible_in_both;
+        epi.insert(epi.end(), m.epipolar_px.begin(), m.epipolar_px.end());
+        row.update({{"pair_true_matches", m.true_matches}, {"pair_false_matches", m.false_matches},
+                    {"pair_found_in_both", m.found_in_both}, {"pair_visible_in_both", m.visible_in_both},
+                    {"epipolar_median_px", Median(m.epipolar_px)}});
+      } else {
+        fmt::print(stderr, "  {} scene {}: frames and views do not line up; correspondence not scored\n", name, s);
+      }
       found += t.matched_vertices;
       possible += t.true_vertices;
       spurious += t.spurious_points;
@@ -154,11 +179,21 @@ int Main(int argc, char** argv) {
       picked += ok_pick ? 1 : 0;
       ms.push_back(r->structure.total_ms);
       ms_all.push_back(r->structure.total_ms);
-      row.update({{"views", r->views.size()}, {"matched", t.matched_vertices}, {"true_vertices", t.true_vertices},
-                  {"mean_mm", t.mean_vertex_error_mm}, {"max_mm", t.max_vertex_error_mm}, {"spurious", t.spurious_points},
-                  {"object_points", t.object_points}, {"held", t.held}, {"placed", t.placed}, {"collisions", t.collisions},
-                  {"grasp", t.grasp_reason}, {"outcome", r->pick.outcome}, {"structure_ms", r->structure.total_ms},
-                  {"cylinder_axis_error_mm", t.cylinder_axis_error_mm}, {"cylinder_radius_error_mm", t.cylinder_radius_error_mm},
+      row.update({{"views", r->views.size()},
+                  {"matched", t.matched_vertices},
+                  {"true_vertices", t.true_vertices},
+                  {"mean_mm", t.mean_vertex_error_mm},
+                  {"max_mm", t.max_vertex_error_mm},
+                  {"spurious", t.spurious_points},
+                  {"object_points", t.object_points},
+                  {"held", t.held},
+                  {"placed", t.placed},
+                  {"collisions", t.collisions},
+                  {"grasp", t.grasp_reason},
+                  {"outcome", r->pick.outcome},
+                  {"structure_ms", r->structure.total_ms},
+                  {"cylinder_axis_error_mm", t.cylinder_axis_error_mm},
+                  {"cylinder_radius_error_mm", t.cylinder_radius_error_mm},
                   {"cylinder_top_error_mm", t.cylinder_top_error_mm}});
       all.push_back(row);
     }
@@ -166,12 +201,41 @@ int Main(int argc, char** argv) {
       errors_all.push_back(sum / matched);
       max_err_all = std::max(max_err_all, worst);
     }
-    fmt::print("{:9} {:>6} {:>4}/{:<3} {:>9.3f} {:>9.3f} {:>5}/{:<3} {:>4}/{:<2} {:>4}/{:<2} {:>9.1f}\n", name, scenes, found,
-               possible, matched > 0 ? sum / matched : 0.0, worst, spurious, objpts, held, scenes, placed, scenes, Median(ms));
+    auto pct = [](long a, long b) { return b > 0 ? 100.0 * static_cast<double>(a) / static_cast<double>(b) : 0.0; };
+    fmt::print(
+        "{:9} {:>6} {:>4}/{:<3} {:>9.3f} {:>9.3f} {:>5}/{:<3} {:>4}/{:<2} {:>4}/{:<2} {:>9.1f} {:>7.2f} {:>7.2f} "
+        "{:>7.2f} {:>8.4f}\n",
+        name,
+        scenes,
+        found,
+        possible,
+        matched > 0 ? sum / matched : 0.0,
+        worst,
+        spurious,
+        objpts,
+        held,
+        scenes,
+        placed,
+        scenes,
+        Median(ms),
+        pct(tp, tp + fp),
+        pct(tp, possible_pairs),
+        pct(tp, visible_pairs),
+        Median(epi));
+    all_tp += tp;
+    all_fp += fp;
+    all_possible += possible_pairs;
+    all_visible += visible_pairs;
+    epi_all.insert(epi_all.end(), epi.begin(), epi.end());
   }
   fmt::print("all: {} scenes, {} scans failed, picks succeeded {}/{} ({:.1f} %), worst corner error {:.3f} mm, "
              "structure time median {:.1f} ms\n",
              total, failed_scans, picked, total, 100.0 * picked / total, max_err_all, Median(ms_all));
+  fmt::print("correspondence over view pairs: {} true, {} false matches: precision {:.2f} %, recall {:.2f} % of the corners "
+             "found in both views ({}), {:.2f} % of those visible in both ({}); epipolar error of matches median {:.4f} px\n",
+             all_tp, all_fp, 100.0 * static_cast<double>(all_tp) / static_cast<double>(std::max(1L, all_tp + all_fp)),
+             100.0 * static_cast<double>(all_tp) / static_cast<double>(std::max(1L, all_possible)), all_possible,
+             100.0 * static_cast<double>(all_tp) / static_cast<double>(std::max(1L, all_visible)), all_visible, Median(epi_all));
   if (!json_out.empty()) {
     std::ofstream(json_out) << nlohmann::json{{"scenes", all}, {"oracle", oracle}, {"stations", stations}}.dump(2) << "\n";
   }

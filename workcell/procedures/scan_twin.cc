@@ -2,8 +2,13 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <limits>
+#include <map>
+#include <set>
 
+#include "shared/camera/pinhole.h"
+#include "shared/reconstruction/epipolar.h"
 #include "workcell/procedures/ptu_twin.h"
 
 namespace idi::workcell {
@@ -122,5 +127,88 @@ ScanTruth ScanTwin::Evaluate(const ScanReport& report, const ScanOptions& option
   }
   return t;
 }
+
+namespace {
+// An IDI point is labelled with the true corner whose image lies this close (else it is a T-junction, a
+// texture corner or a stray point).
+constexpr double kLabelTolerancePx = 1.5;
+}  // namespace
+
+CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const {
+  CorrespondenceTruth score;
+  const auto& left = cell_->Truths(BiclopsSide::kLeft);
+  const auto& right = cell_->Truths(BiclopsSide::kRight);
+  const std::size_t n = r.views.size();
+  if (left.size() + right.size() != n || r.structure.matched_features.size() != n) return score;
+  std::map<std::pair<std::string, int>, int> ids;
+  std::vector<std::vector<std::vector<int>>> label(n);  // per view, per matched IDI point: its corners
+  std::vector<std::set<int>> seen(n), found(n);
+  std::size_t li = 0, ri = 0;
+  for (std::size_t v = 0; v < n; ++v) {
+    const StructureView& sv = r.views[v].view;
+    const bool is_left = sv.name.size() >= 4 && sv.name.compare(sv.name.size() - 4, 4, "left") == 0;
+    if ((is_left && li >= left.size()) || (!is_left && ri >= right.size())) return score;
+    const sim::GroundTruth& t = is_left ? left[li++] : right[ri++];
+    std::vector<std::pair<int, Vec2d>> corners;  // id, undistorted pixel in the view's (calibrated) model
+    for (const sim::TruthJunction& j : t.junctions) {
+      if (!j.is_vertex) continue;
+      const int x = static_cast<int>(std::lround(j.xy_px.x())), y = static_cast<int>(std::lround(j.xy_px.y()));
+      if (x < 0 || y < 0 || x >= sv.roi.cols || y >= sv.roi.rows || sv.roi.at<uint8_t>(y, x) == 0) continue;
+      const int id = ids.emplace(std::make_pair(j.object, j.vertex), static_cast<int>(ids.size())).first->second;
+      corners.emplace_back(id, UndistortPixel(sv.camera, j.xy_px));
+      seen[v].insert(id);
+    }
+    for (const ViewPoint& p : r.structure.matched_features[v].points) {
+      // Every corner whose image lies within the tolerance: two corners less than a pixel apart in the
+      // image meet in one IDI point, which is then the image of both.
+      int best = -1;
+      double best_d = kLabelTolerancePx;
+      std::vector<int> within;
+      for (const auto& [id, xy] : corners) {
+        const double d = (xy - p.xy).norm();
+        if (d < kLabelTolerancePx) within.push_back(id);
+        if (d < best_d) best_d = d, best = id;
+      }
+      label[v].push_back(std::move(within));
+      if (best >= 0) found[v].insert(best);
+    }
+  }
+  auto common = [](const std::set<int>& a, const std::set<int>& b) {
+    long c = 0;
+    for (const int x : a) c += b.count(x) ? 1 : 0;
+    return c;
+  };
+  for (std::size_t a = 0; a < n; ++a) {
+    for (std::size_t b = a + 1; b < n; ++b) {
+      score.found_in_both += common(found[a], found[b]);
+      score.visible_in_both += common(seen[a], seen[b]);
+      const StructureView& va = r.views[a].view;
+      const StructureView& vb = r.views[b].view;
+      const auto f = FundamentalFromProjections(MakeProjection(va.camera.K(), va.cam_from_world),
+                                                MakeProjection(vb.camera.K(), vb.cam_from_world));
+      for (const PointTrack& track : r.structure.correspondences.points) {
+        int ia = -1, ib = -1;
+        for (const Observation& o : track.observations) {
+          if (o.view == static_cast<int>(a)) ia = o.index;
+          if (o.view == static_cast<int>(b)) ib = o.index;
+        }
+        if (ia < 0 || ib < 0) continue;
+        const std::vector<int>& la = label[a][static_cast<std::size_t>(ia)];
+        const std::vector<int>& lb = label[b][static_cast<std::size_t>(ib)];
+        const bool same = std::any_of(la.begin(), la.end(), [&](int x) { return std::count(lb.begin(), lb.end(), x) > 0; });
+        same ? ++score.true_matches : ++score.false_matches;
+        if (f) {
+          score.epipolar_px.push_back(
+              EpipolarDistance(*f,
+                               r.structure.matched_features[a].points[static_cast<std::size_t>(ia)].xy,
+                               r.structure.matched_features[b].points[static_cast<std::size_t>(ib)].xy));
+        }
+      }
+    }
+  }
+  score.scored = true;
+  return score;
+}
+
 
 }  // namespace idi::workcell

@@ -129,6 +129,7 @@ Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& v
     cviews.push_back({&adapted[v].features, &views[v].camera, views[v].cam_from_world});
   }
   IDI_ASSIGN_OR_RETURN(out.correspondences, MatchViews(cviews, options.correspondence));
+  for (const AdaptedFeatures& a : adapted) out.matched_features.push_back(a.features);
   out.model = BuildModel(out.correspondences, cviews, options.model);
   out.correspondence_ms = MsSince(t0);
   if (options.adjust && !out.model.points.empty()) {

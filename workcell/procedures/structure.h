@@ -37,6 +37,9 @@ struct StructureOptions {
 struct StructureResult {
   StructureModel model;                    // after bundle adjustment
   std::vector<FeatureResult> features;     // per view (undistorted pixel coordinates)
+  // What the correspondence saw in each view (the IDI points inside the view's roi and the lines reaching
+  // into it, renumbered): the observations' indices in `correspondences` and `model` refer to these.
+  std::vector<ViewFeatures> matched_features;
   Correspondences correspondences;
   optim::BundleAdjustmentSummary adjustment;
   double features_ms = 0, correspondence_ms = 0, adjustment_ms = 0, total_ms = 0;

@@ -54,7 +54,7 @@ class CellTwin::Camera final : public hal::CameraDevice {
     const CameraModel& camera = o.head[Index()].camera;
     IDI_ASSIGN_OR_RETURN(cv::Mat pixels, RenderScene(scene, camera, world_from_cam.Inverse(), r,
                                                      o.keep_truth ? &truth : nullptr));
-    if (o.keep_truth) twin_->truth_[Index()] = std::move(truth);
+    if (o.keep_truth) twin_->truth_[Index()].push_back(std::move(truth));
     const int64_t period_ns = hal::SecToNs(o.frame_period_s);
     twin_->clock().SleepForNs(period_ns);
     hal::Image image;
@@ -393,7 +393,11 @@ Rigid3d CellTwin::TrueWorldFromPalm() const { return WorldFromPalmAt(workcell_->
 
 const GroundTruth* CellTwin::LastTruth(BiclopsSide side) const {
   const auto& t = truth_[side == BiclopsSide::kLeft ? 0 : 1];
-  return t ? &*t : nullptr;
+  return t.empty() ? nullptr : &t.back();
+}
+
+const std::vector<GroundTruth>& CellTwin::Truths(BiclopsSide side) const {
+  return truth_[side == BiclopsSide::kLeft ? 0 : 1];
 }
 
 void CellTwin::Event(const std::string& what) { events_.push_back({workcell_->clock().NowNs(), what}); }

@@ -128,6 +128,8 @@ class CellTwin {
   Rigid3d TrueWorldFromTcf() const;
   Rigid3d TrueWorldFromPalm() const;
   const GroundTruth* LastTruth(BiclopsSide side) const;
+  // Every frame's truth in the order the camera took them (empty unless options().keep_truth).
+  const std::vector<GroundTruth>& Truths(BiclopsSide side) const;
   std::optional<int> held_object() const { return held_; }
   const GraspJudgement& last_grasp() const { return last_grasp_; }
   const std::vector<CellEvent>& events() const { return events_; }
@@ -167,7 +169,7 @@ class CellTwin {
   std::vector<CellEvent> events_;
   int collisions_ = 0;
   std::vector<int> disturbed_;
-  std::array<std::optional<GroundTruth>, 2> truth_;
+  std::array<std::vector<GroundTruth>, 2> truth_;  // every frame, when keep_truth
   uint64_t frames_ = 0;
 };
 
