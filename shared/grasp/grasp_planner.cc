@@ -171,6 +171,7 @@ std::vector<Vec2d> CrossSection(const std::vector<Vec3d>& points, const std::vec
 // Candidate grasps on one silhouette (two-on-one on each edge, tripods about the centroid).
 std::vector<PlanarGrasp> Candidates(const std::vector<Vec2d>& hull, const Vec2d& centroid, const GraspOptions& o) {
   const double half_spacing = 0.5 * o.hand.finger_spacing_mm;
+  const double pad_offset = std::max(0.0, half_spacing - 0.25 * o.hand.finger_width_mm);
   std::vector<PlanarGrasp> candidates;
   // Two-on-one (spread 0): the thumb on a silhouette edge, pushing along its inward normal; fingers 1
   // and 2, half the finger spacing either side, push back from the far side.
@@ -190,7 +191,11 @@ std::vector<PlanarGrasp> Candidates(const std::vector<Vec2d>& hull, const Vec2d&
     g.normals.push_back(na);
     g.pushes.push_back(axis);
     bool ok = true;
-    for (const double off : {-half_spacing, half_spacing}) {
+    // Each finger's pad is finger_width wide about its offset, and the fingers touch with any part of
+    // it: the ray through the pad's inner half must meet the far side. A bracket's leg as wide as the
+    // finger spacing (50 mm) then still takes fingers 1 and 2, whose centres fall on its two end edges,
+    // where the ray through the pad's centre grazes a corner or misses.
+    for (const double off : {-pad_offset, pad_offset}) {
       const auto hit = ExitPoint(hull, g.contacts[0] + off * side, axis);
       if (!hit || hit->t <= 0) {
         ok = false;

@@ -35,6 +35,28 @@ TEST(GraspPlannerTest, BoxIsGraspedAcrossItsNarrowSideThroughTheCentre) {
   EXPECT_GT(plan->friction_margin_rad, 0.3);
 }
 
+// A post as wide as the finger spacing (50 mm, like a bracket's leg), measured with a millimetre of error
+// so its two wide faces come out shifted by 0.8 mm against each other: fingers 1 and 2 are centred on
+// the far face's end edges, one of them just past it, and their pads (20 mm wide) still overlap it by
+// about 10 mm. The grasp across the
+// 16 mm thickness must be found, not refused because the ray through a pad's centre misses the face.
+TEST(GraspPlannerTest, PostAsWideAsTheFingerSpacingIsGrippedAcrossItsThickness) {
+  std::vector<Vec3d> post;
+  for (double z : {0.0, 80.0}) {
+    post.emplace_back(-25.4, 0.0, z);
+    post.emplace_back(24.6, 0.0, z);
+    post.emplace_back(25.4, 16.0, z);
+    post.emplace_back(-24.6, 16.0, z);
+  }
+  const std::vector<std::pair<int, int>> edges = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
+                                                  {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
+  const auto plan = PlanTopGrasp(post, 0.0, {}, edges);
+  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+  EXPECT_NEAR(plan->width_mm, 16.0, 0.1);
+  EXPECT_NEAR(std::abs(plan->world_from_grasp.rotation.col(0).y()), 1.0, 1e-3) << "closes across the thickness";
+  EXPECT_LT(plan->centroid_offset_mm, 1.0);
+}
+
 TEST(GraspPlannerTest, TooWideObjectIsRefused) {
   const auto plan = PlanTopGrasp(BoxPoints(Vec3d(0, 0, 0), Vec3d(300, 260, 50), 0.0), 0.0);
   EXPECT_EQ(plan.status().code(), StatusCode::kNotFound);
