@@ -21,6 +21,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <numeric>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -108,16 +109,17 @@ int Main(int argc, char** argv) {
   nlohmann::json all = nlohmann::json::array();
   int total = 0, picked = 0, failed_scans = 0;
   std::vector<double> errors_all, ms_all, epi_all;
-  long all_tp = 0, all_fp = 0, all_possible = 0, all_visible = 0;
+  long all_tp = 0, all_fp = 0, all_matched = 0, all_possible = 0, all_visible = 0;
   double max_err_all = 0;
   fmt::print("{:9} {:>6} {:>8} {:>9} {:>9} {:>9} {:>7} {:>7} {:>9} {:>7} {:>7} {:>7} {:>8}\n", "object", "scenes", "corners",
              "mean mm", "max mm", "spurious", "held", "placed", "ms (med)", "prec %", "rec %", "vis %", "epi px");
   for (const auto& [name, kind] : kinds) {
     if (!only.empty() && only != name) continue;
     int found = 0, possible = 0, spurious = 0, objpts = 0, held = 0, placed = 0;
+    std::vector<double> on_table, above_table;  // corner errors: bottom corners (on the table) and the rest
     double sum = 0, worst = 0;
     int matched = 0;
-    long tp = 0, fp = 0, possible_pairs = 0, visible_pairs = 0;
+    long tp = 0, fp = 0, corners_matched = 0, possible_pairs = 0, visible_pairs = 0;
     std::vector<double> ms, epi;
     for (int s = 0; s < scenes; ++s) {
       workcell::ScanTwinOptions to;
@@ -154,17 +156,21 @@ int Main(int argc, char** argv) {
       const workcell::CorrespondenceTruth m = twin.EvaluateCorrespondence(*r);
       if (m.scored) {
         tp += m.true_matches;
+        corners_matched += m.corners_matched;
         fp += m.false_matches;
         possible_pairs += m.found_in_both;
         visible_pairs += m.visible_in_both;
         epi.insert(epi.end(), m.epipolar_px.begin(), m.epipolar_px.end());
-        row.update({{"pair_true_matches", m.true_matches}, {"pair_false_matches", m.false_matches},
+        row.update({{"pair_true_matches", m.true_matches}, {"pair_corners_matched", m.corners_matched}, {"pair_false_matches", m.false_matches},
                     {"pair_found_in_both", m.found_in_both}, {"pair_visible_in_both", m.visible_in_both},
                     {"epipolar_median_px", Median(m.epipolar_px)}});
       } else {
         fmt::print(stderr, "  {} scene {}: frames and views do not line up; correspondence not scored\n", name, s);
       }
       found += t.matched_vertices;
+      for (std::size_t k = 0; k < t.vertex_error_mm.size(); ++k) {
+        if (t.vertex_error_mm[k] >= 0) (t.vertex_height_mm[k] < 1.0 ? on_table : above_table).push_back(t.vertex_error_mm[k]);
+      }
       possible += t.true_vertices;
       spurious += t.spurious_points;
       objpts += t.object_points;
@@ -182,7 +188,7 @@ int Main(int argc, char** argv) {
       row.update({{"views", r->views.size()},
                   {"matched", t.matched_vertices},
                   {"true_vertices", t.true_vertices},
-                  {"mean_mm", t.mean_vertex_error_mm},
+                  {"mean_mm", t.mean_vertex_error_mm}, {"vertex_error_mm", t.vertex_error_mm}, {"vertex_height_mm", t.vertex_height_mm},
                   {"max_mm", t.max_vertex_error_mm},
                   {"spurious", t.spurious_points},
                   {"object_points", t.object_points},
@@ -219,10 +225,17 @@ int Main(int argc, char** argv) {
         scenes,
         Median(ms),
         pct(tp, tp + fp),
-        pct(tp, possible_pairs),
-        pct(tp, visible_pairs),
+        pct(corners_matched, possible_pairs),
+        pct(corners_matched, visible_pairs),
         Median(epi));
+    if (!on_table.empty() || !above_table.empty()) {
+      auto mean = [](const std::vector<double>& v) { return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size()); };
+      auto max = [](const std::vector<double>& v) { return v.empty() ? 0.0 : *std::max_element(v.begin(), v.end()); };
+      fmt::print("{:9} corners above the table {} (mean {:.3f}, max {:.3f} mm), on the table {} (mean {:.3f}, max {:.3f} mm)\n", "",
+                 above_table.size(), mean(above_table), max(above_table), on_table.size(), mean(on_table), max(on_table));
+    }
     all_tp += tp;
+    all_matched += corners_matched;
     all_fp += fp;
     all_possible += possible_pairs;
     all_visible += visible_pairs;
@@ -234,8 +247,8 @@ int Main(int argc, char** argv) {
   fmt::print("correspondence over view pairs: {} true, {} false matches: precision {:.2f} %, recall {:.2f} % of the corners "
              "found in both views ({}), {:.2f} % of those visible in both ({}); epipolar error of matches median {:.4f} px\n",
              all_tp, all_fp, 100.0 * static_cast<double>(all_tp) / static_cast<double>(std::max(1L, all_tp + all_fp)),
-             100.0 * static_cast<double>(all_tp) / static_cast<double>(std::max(1L, all_possible)), all_possible,
-             100.0 * static_cast<double>(all_tp) / static_cast<double>(std::max(1L, all_visible)), all_visible, Median(epi_all));
+             100.0 * static_cast<double>(all_matched) / static_cast<double>(std::max(1L, all_possible)), all_possible,
+             100.0 * static_cast<double>(all_matched) / static_cast<double>(std::max(1L, all_visible)), all_visible, Median(epi_all));
   if (!json_out.empty()) {
     std::ofstream(json_out) << nlohmann::json{{"scenes", all}, {"oracle", oracle}, {"stations", stations}}.dump(2) << "\n";
   }

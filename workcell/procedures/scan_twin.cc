@@ -91,6 +91,8 @@ ScanTruth ScanTwin::Evaluate(const ScanReport& report, const ScanOptions& option
   for (const Vec3d& c : corners) {
     double best = std::numeric_limits<double>::infinity();
     for (int i : report.object_points) best = std::min(best, (pts[static_cast<std::size_t>(i)].xyz - c).norm());
+    t.vertex_error_mm.push_back(best <= t.match_mm ? best : -1.0);
+    t.vertex_height_mm.push_back(c.z() - options.table_centre_world.z());
     if (best <= t.match_mm) {
       ++t.matched_vertices;
       sum += best;
@@ -161,16 +163,12 @@ CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const 
     for (const ViewPoint& p : r.structure.matched_features[v].points) {
       // Every corner whose image lies within the tolerance: two corners less than a pixel apart in the
       // image meet in one IDI point, which is then the image of both.
-      int best = -1;
-      double best_d = kLabelTolerancePx;
       std::vector<int> within;
       for (const auto& [id, xy] : corners) {
-        const double d = (xy - p.xy).norm();
-        if (d < kLabelTolerancePx) within.push_back(id);
-        if (d < best_d) best_d = d, best = id;
+        if ((xy - p.xy).norm() < kLabelTolerancePx) within.push_back(id);
       }
+      found[v].insert(within.begin(), within.end());
       label[v].push_back(std::move(within));
-      if (best >= 0) found[v].insert(best);
     }
   }
   auto common = [](const std::set<int>& a, const std::set<int>& b) {
@@ -186,6 +184,7 @@ CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const 
       const StructureView& vb = r.views[b].view;
       const auto f = FundamentalFromProjections(MakeProjection(va.camera.K(), va.cam_from_world),
                                                 MakeProjection(vb.camera.K(), vb.cam_from_world));
+      std::set<int> matched;  // corners matched between the two views
       for (const PointTrack& track : r.structure.correspondences.points) {
         int ia = -1, ib = -1;
         for (const Observation& o : track.observations) {
@@ -195,8 +194,14 @@ CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const 
         if (ia < 0 || ib < 0) continue;
         const std::vector<int>& la = label[a][static_cast<std::size_t>(ia)];
         const std::vector<int>& lb = label[b][static_cast<std::size_t>(ib)];
-        const bool same = std::any_of(la.begin(), la.end(), [&](int x) { return std::count(lb.begin(), lb.end(), x) > 0; });
-        same ? ++score.true_matches : ++score.false_matches;
+        const auto same =
+            std::find_if(la.begin(), la.end(), [&](int x) { return std::count(lb.begin(), lb.end(), x) > 0; });
+        if (same != la.end()) {
+          ++score.true_matches;
+          matched.insert(*same);
+        } else {
+          ++score.false_matches;
+        }
         if (f) {
           score.epipolar_px.push_back(
               EpipolarDistance(*f,
@@ -204,6 +209,7 @@ CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const 
                                r.structure.matched_features[b].points[static_cast<std::size_t>(ib)].xy));
         }
       }
+      score.corners_matched += static_cast<long>(matched.size());
     }
   }
   score.scored = true;

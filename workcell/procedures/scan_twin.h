@@ -33,6 +33,8 @@ struct ScanTruth {
   int true_vertices = 0;        // corners of the object (none for a cylinder)
   int matched_vertices = 0;     // with a model point within `match_mm`
   double mean_vertex_error_mm = 0, max_vertex_error_mm = 0;
+  // Per true corner: its error (-1 when not matched) and its height above the table top.
+  std::vector<double> vertex_error_mm, vertex_height_mm;
   int object_points = 0;        // model points the scan put on the object
   int spurious_points = 0;      // of those, farther than `match_mm` from every true corner (non-cylinders)
   bool held = false;            // the hand's grasp held (the twin's contact physics)
@@ -52,12 +54,13 @@ struct ScanTruth {
 // a pair's match is true when both points carry the same corner.
 struct CorrespondenceTruth {
   long true_matches = 0, false_matches = 0;
+  long corners_matched = 0;  // per pair: distinct true corners among the true matches
   long found_in_both = 0;    // per pair: true corners found as an IDI point (inside the object region) in both views
   long visible_in_both = 0;  // per pair: true corners visible inside the object region in both views
   std::vector<double> epipolar_px;  // every matched pair's epipolar error (calibrated projections)
   bool scored = false;       // false without kept truth (ScanTwinOptions::keep_truth) or views that do not line up
   double precision() const { return Ratio(true_matches, true_matches + false_matches); }
-  double recall() const { return Ratio(true_matches, found_in_both); }
+  double recall() const { return Ratio(corners_matched, found_in_both); }
   static double Ratio(long a, long b) { return b > 0 ? static_cast<double>(a) / static_cast<double>(b) : 0.0; }
 };
 
