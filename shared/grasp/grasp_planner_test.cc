@@ -38,8 +38,8 @@ TEST(GraspPlannerTest, BoxIsGraspedAcrossItsNarrowSideThroughTheCentre) {
 // A post as wide as the finger spacing (50 mm, like a bracket's leg), measured with a millimetre of error
 // so its two wide faces come out shifted by 0.8 mm against each other: fingers 1 and 2 are centred on
 // the far face's end edges, one of them just past it, and their pads (20 mm wide) still overlap it by
-// about 10 mm. The grasp across the
-// 16 mm thickness must be found, not refused because the ray through a pad's centre misses the face.
+// about 10 mm. The grasp across the 16 mm thickness must be found, not refused because the ray through a
+// pad's centre misses the face.
 TEST(GraspPlannerTest, PostAsWideAsTheFingerSpacingIsGrippedAcrossItsThickness) {
   std::vector<Vec3d> post;
   for (double z : {0.0, 80.0}) {

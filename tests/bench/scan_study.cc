@@ -20,6 +20,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <system_error>
 #include <fstream>
 #include <numeric>
 #include <nlohmann/json.hpp>
@@ -108,8 +109,8 @@ int Main(int argc, char** argv) {
                                                                       {"cylinder", sim::ObjectKind::kCylinder}};
   nlohmann::json all = nlohmann::json::array();
   int total = 0, picked = 0, failed_scans = 0;
-  std::vector<double> errors_all, ms_all, epi_all;
-  long all_tp = 0, all_fp = 0, all_matched = 0, all_possible = 0, all_visible = 0;
+  std::vector<double> errors_all, ms_all;
+  workcell::CorrespondenceTruth match_all;  // pooled over every scene
   double max_err_all = 0;
   fmt::print("{:9} {:>6} {:>8} {:>9} {:>9} {:>9} {:>7} {:>7} {:>9} {:>7} {:>7} {:>7} {:>8}\n", "object", "scenes", "corners",
              "mean mm", "max mm", "spurious", "held", "placed", "ms (med)", "prec %", "rec %", "vis %", "epi px");
@@ -119,8 +120,8 @@ int Main(int argc, char** argv) {
     std::vector<double> on_table, above_table;  // corner errors: bottom corners (on the table) and the rest
     double sum = 0, worst = 0;
     int matched = 0;
-    long tp = 0, fp = 0, corners_matched = 0, possible_pairs = 0, visible_pairs = 0;
-    std::vector<double> ms, epi;
+    workcell::CorrespondenceTruth match;  // pooled over this object's scenes
+    std::vector<double> ms;
     for (int s = 0; s < scenes; ++s) {
       workcell::ScanTwinOptions to;
       to.seed = seed;
@@ -142,7 +143,14 @@ int Main(int argc, char** argv) {
       }
       ++total;
       if (!out_dir.empty()) o.out_dir = fmt::format("{}/{}_{}", out_dir, name, s);
-      if (!o.out_dir.empty()) std::filesystem::create_directories(o.out_dir);
+      if (!o.out_dir.empty()) {
+        std::error_code ec;
+        std::filesystem::create_directories(o.out_dir, ec);
+        if (ec) {
+          fmt::print(stderr, "scan_study: cannot create {}: {}\n", o.out_dir, ec.message());
+          return 1;
+        }
+      }
       auto r = workcell::ScanAndPick(d, cal, o);
       nlohmann::json row = {{"object", name}, {"scene", s}};
       if (!r.ok()) {
@@ -155,12 +163,7 @@ int Main(int argc, char** argv) {
       const workcell::ScanTruth t = twin.Evaluate(*r, o);
       const workcell::CorrespondenceTruth m = twin.EvaluateCorrespondence(*r);
       if (m.scored) {
-        tp += m.true_matches;
-        corners_matched += m.corners_matched;
-        fp += m.false_matches;
-        possible_pairs += m.found_in_both;
-        visible_pairs += m.visible_in_both;
-        epi.insert(epi.end(), m.epipolar_px.begin(), m.epipolar_px.end());
+        match.Add(m);
         row.update({{"pair_true_matches", m.true_matches}, {"pair_corners_matched", m.corners_matched}, {"pair_false_matches", m.false_matches},
                     {"pair_found_in_both", m.found_in_both}, {"pair_visible_in_both", m.visible_in_both},
                     {"epipolar_median_px", Median(m.epipolar_px)}});
@@ -207,7 +210,6 @@ int Main(int argc, char** argv) {
       errors_all.push_back(sum / matched);
       max_err_all = std::max(max_err_all, worst);
     }
-    auto pct = [](long a, long b) { return b > 0 ? 100.0 * static_cast<double>(a) / static_cast<double>(b) : 0.0; };
     fmt::print(
         "{:9} {:>6} {:>4}/{:<3} {:>9.3f} {:>9.3f} {:>5}/{:<3} {:>4}/{:<2} {:>4}/{:<2} {:>9.1f} {:>7.2f} {:>7.2f} "
         "{:>7.2f} {:>8.4f}\n",
@@ -224,31 +226,26 @@ int Main(int argc, char** argv) {
         placed,
         scenes,
         Median(ms),
-        pct(tp, tp + fp),
-        pct(corners_matched, possible_pairs),
-        pct(corners_matched, visible_pairs),
-        Median(epi));
+        100.0 * match.precision(),
+        100.0 * match.recall(),
+        100.0 * match.recall_of_visible(),
+        Median(match.epipolar_px));
     if (!on_table.empty() || !above_table.empty()) {
       auto mean = [](const std::vector<double>& v) { return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size()); };
       auto max = [](const std::vector<double>& v) { return v.empty() ? 0.0 : *std::max_element(v.begin(), v.end()); };
       fmt::print("{:9} corners above the table {} (mean {:.3f}, max {:.3f} mm), on the table {} (mean {:.3f}, max {:.3f} mm)\n", "",
                  above_table.size(), mean(above_table), max(above_table), on_table.size(), mean(on_table), max(on_table));
     }
-    all_tp += tp;
-    all_matched += corners_matched;
-    all_fp += fp;
-    all_possible += possible_pairs;
-    all_visible += visible_pairs;
-    epi_all.insert(epi_all.end(), epi.begin(), epi.end());
+    match_all.Add(match);
   }
   fmt::print("all: {} scenes, {} scans failed, picks succeeded {}/{} ({:.1f} %), worst corner error {:.3f} mm, "
              "structure time median {:.1f} ms\n",
              total, failed_scans, picked, total, 100.0 * picked / total, max_err_all, Median(ms_all));
   fmt::print("correspondence over view pairs: {} true, {} false matches: precision {:.2f} %, recall {:.2f} % of the corners "
              "found in both views ({}), {:.2f} % of those visible in both ({}); epipolar error of matches median {:.4f} px\n",
-             all_tp, all_fp, 100.0 * static_cast<double>(all_tp) / static_cast<double>(std::max(1L, all_tp + all_fp)),
-             100.0 * static_cast<double>(all_matched) / static_cast<double>(std::max(1L, all_possible)), all_possible,
-             100.0 * static_cast<double>(all_matched) / static_cast<double>(std::max(1L, all_visible)), all_visible, Median(epi_all));
+             match_all.true_matches, match_all.false_matches, 100.0 * match_all.precision(), 100.0 * match_all.recall(),
+             match_all.found_in_both, 100.0 * match_all.recall_of_visible(), match_all.visible_in_both,
+             Median(match_all.epipolar_px));
   if (!json_out.empty()) {
     std::ofstream(json_out) << nlohmann::json{{"scenes", all}, {"oracle", oracle}, {"stations", stations}}.dump(2) << "\n";
   }

@@ -55,8 +55,7 @@ TEST(ScanTest, BoxIsReconstructedPickedAndPlaced) {
 // give 95.3 % (17 false), with 0.8 px 98.9 % (4 false: one view's point is the image of a visible corner
 // and lies 0.4 px from the hidden corner of the track, which no image measurement can tell apart).
 TEST(ScanTest, CorrespondenceOfBracketScenesIsPrecise) {
-  long true_matches = 0, false_matches = 0, corners_matched = 0, found_in_both = 0;
-  std::vector<double> epipolar;
+  CorrespondenceTruth pooled;
   for (unsigned scene = 0; scene < 3; ++scene) {
     ScanTwinOptions to;
     to.seed = 1;
@@ -71,17 +70,12 @@ TEST(ScanTest, CorrespondenceOfBracketScenesIsPrecise) {
     ASSERT_TRUE(r.ok()) << r.status().ToString();
     const CorrespondenceTruth c = twin.EvaluateCorrespondence(*r);
     ASSERT_TRUE(c.scored) << "scene " << scene << ": frames and views do not line up";
-    true_matches += c.true_matches;
-    false_matches += c.false_matches;
-    corners_matched += c.corners_matched;
-    found_in_both += c.found_in_both;
-    epipolar.insert(epipolar.end(), c.epipolar_px.begin(), c.epipolar_px.end());
+    pooled.Add(c);
   }
-  ASSERT_GT(true_matches, 200) << "three bracket scans of 8 views match hundreds of corner pairs";
-  EXPECT_GE(CorrespondenceTruth::Ratio(true_matches, true_matches + false_matches), 0.98)
-      << true_matches << " true, " << false_matches << " false";
-  EXPECT_GE(CorrespondenceTruth::Ratio(corners_matched, found_in_both), 0.95)
-      << corners_matched << " of " << found_in_both;
+  ASSERT_GT(pooled.true_matches, 200) << "three bracket scans of 8 views match hundreds of corner pairs";
+  EXPECT_GE(pooled.precision(), 0.98) << pooled.true_matches << " true, " << pooled.false_matches << " false";
+  EXPECT_GE(pooled.recall(), 0.95) << pooled.corners_matched << " of " << pooled.found_in_both;
+  std::vector<double>& epipolar = pooled.epipolar_px;
   std::nth_element(epipolar.begin(), epipolar.begin() + static_cast<long>(epipolar.size() / 2), epipolar.end());
   EXPECT_LT(epipolar[epipolar.size() / 2], 0.15) << "median epipolar error of the matched points, px";
 }

@@ -216,5 +216,14 @@ CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const 
   return score;
 }
 
+void CorrespondenceTruth::Add(const CorrespondenceTruth& other) {
+  true_matches += other.true_matches;
+  false_matches += other.false_matches;
+  corners_matched += other.corners_matched;
+  found_in_both += other.found_in_both;
+  visible_in_both += other.visible_in_both;
+  epipolar_px.insert(epipolar_px.end(), other.epipolar_px.begin(), other.epipolar_px.end());
+  scored = scored || other.scored;
+}
 
 }  // namespace idi::workcell

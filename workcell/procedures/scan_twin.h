@@ -61,6 +61,9 @@ struct CorrespondenceTruth {
   bool scored = false;       // false without kept truth (ScanTwinOptions::keep_truth) or views that do not line up
   double precision() const { return Ratio(true_matches, true_matches + false_matches); }
   double recall() const { return Ratio(corners_matched, found_in_both); }
+  double recall_of_visible() const { return Ratio(corners_matched, visible_in_both); }
+  // Pools another scan's counts and epipolar errors into these (over several scenes).
+  void Add(const CorrespondenceTruth& other);
   static double Ratio(long a, long b) { return b > 0 ? static_cast<double>(a) / static_cast<double>(b) : 0.0; }
 };
 

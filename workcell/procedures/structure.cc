@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 #include <optional>
 #include <thread>
+#include <utility>
 
 #include "shared/reconstruction/features_adapter.h"
 
@@ -129,7 +130,6 @@ Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& v
     cviews.push_back({&adapted[v].features, &views[v].camera, views[v].cam_from_world});
   }
   IDI_ASSIGN_OR_RETURN(out.correspondences, MatchViews(cviews, options.correspondence));
-  for (const AdaptedFeatures& a : adapted) out.matched_features.push_back(a.features);
   out.model = BuildModel(out.correspondences, cviews, options.model);
   out.correspondence_ms = MsSince(t0);
   if (options.adjust && !out.model.points.empty()) {
@@ -179,6 +179,8 @@ Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& v
     }
     out.adjustment_ms = MsSince(t0);
   }
+  // Handed over once nothing refers to them any more (cviews and the adjustment's observations do).
+  for (AdaptedFeatures& a : adapted) out.matched_features.push_back(std::move(a.features));
   out.total_ms = MsSince(t_start);
   return out;
 }
