@@ -246,6 +246,16 @@ int Main(int argc, char** argv) {
              match_all.true_matches, match_all.false_matches, 100.0 * match_all.precision(), 100.0 * match_all.recall(),
              match_all.found_in_both, 100.0 * match_all.recall_of_visible(), match_all.visible_in_both,
              Median(match_all.epipolar_px));
+  if (!match_all.point_error_px.empty()) {
+    std::vector<double> err = match_all.point_error_px, ratio;
+    for (std::size_t k = 0; k < err.size(); ++k) ratio.push_back(err[k] / std::max(match_all.point_sigma_px[k], 1e-9));
+    std::sort(err.begin(), err.end());
+    std::sort(ratio.begin(), ratio.end());
+    auto pct = [](const std::vector<double>& v, double q) { return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1))]; };
+    fmt::print("IDI points against the true corners ({}): error median {:.3f}, 90th {:.3f}, 99th {:.3f} px; "
+               "error / own sigma median {:.2f}, 90th {:.2f}\n",
+               err.size(), pct(err, 0.5), pct(err, 0.9), pct(err, 0.99), pct(ratio, 0.5), pct(ratio, 0.9));
+  }
   if (!json_out.empty()) {
     std::ofstream(json_out) << nlohmann::json{{"scenes", all}, {"oracle", oracle}, {"stations", stations}}.dump(2) << "\n";
   }

@@ -164,8 +164,16 @@ CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const 
       // Every corner whose image lies within the tolerance: two corners less than a pixel apart in the
       // image meet in one IDI point, which is then the image of both.
       std::vector<int> within;
+      double error = 0;
       for (const auto& [id, xy] : corners) {
-        if ((xy - p.xy).norm() < kLabelTolerancePx) within.push_back(id);
+        if ((xy - p.xy).norm() < kLabelTolerancePx) {
+          within.push_back(id);
+          error = (xy - p.xy).norm();
+        }
+      }
+      if (within.size() == 1) {
+        score.point_error_px.push_back(error);
+        score.point_sigma_px.push_back(p.sigma_px);
       }
       found[v].insert(within.begin(), within.end());
       label[v].push_back(std::move(within));
@@ -223,6 +231,8 @@ void CorrespondenceTruth::Add(const CorrespondenceTruth& other) {
   found_in_both += other.found_in_both;
   visible_in_both += other.visible_in_both;
   epipolar_px.insert(epipolar_px.end(), other.epipolar_px.begin(), other.epipolar_px.end());
+  point_error_px.insert(point_error_px.end(), other.point_error_px.begin(), other.point_error_px.end());
+  point_sigma_px.insert(point_sigma_px.end(), other.point_sigma_px.begin(), other.point_sigma_px.end());
   scored = scored || other.scored;
 }
 

@@ -58,6 +58,9 @@ struct CorrespondenceTruth {
   long found_in_both = 0;    // per pair: true corners found as an IDI point (inside the object region) in both views
   long visible_in_both = 0;  // per pair: true corners visible inside the object region in both views
   std::vector<double> epipolar_px;  // every matched pair's epipolar error (calibrated projections)
+  // Every IDI point labelled with exactly one corner: its distance to that corner's image and its own
+  // sigma_px (the front end's accuracy on the scan's images; the points of every view, matched or not).
+  std::vector<double> point_error_px, point_sigma_px;
   bool scored = false;       // false without kept truth (ScanTwinOptions::keep_truth) or views that do not line up
   double precision() const { return Ratio(true_matches, true_matches + false_matches); }
   double recall() const { return Ratio(corners_matched, found_in_both); }
