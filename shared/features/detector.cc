@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <set>
 #include <string>
 #include <utility>
@@ -96,6 +97,7 @@ Status EmplOptions::Check() const {
   if (!(max_extension_px >= min_extension_px)) {
     return InvalidArgument("empl.max_extension_px must be >= empl.min_extension_px");
   }
+  IDI_RETURN_IF_ERROR(InRange(junction_refit_angle_deg, 0.0, 90.0, "empl.junction_refit_angle_deg"));
   return Status::Ok();
 }
 
@@ -246,6 +248,77 @@ struct FeatureDetector::Impl {
       }
     }
   }
+
+  // Refits the lines of shallow junctions clear of each other's edge (EmplOptions::junction_refit_angle_deg).
+  // A junction is a pair of lines meeting within both lines' unconfirmed extensions, as for an IDI
+  // point. Every refit keeps clear of the lines as they were, so the order does not matter; a refit that
+  // fails or loses a tenth of the line keeps the first fit.
+  // How far another edge's blur reaches into a line's fit: the photometric band (2 sigma + 1.5 px) and the
+  // other edge's own profile (2 sigma).
+  static double Clearance(const EmplLine& l) { return 3.0 + 4.0 * (l.blur_sigma_px > 0 ? l.blur_sigma_px : 1.5); }
+
+  void RefitShallowJunctions(const EmplFitter& fitter, std::vector<EmplFitResult>* fits) const {
+    const EmplOptions& eo = options.empl;
+    if (eo.junction_refit_angle_deg <= options.idi.min_angle_deg) {
+      return;
+    }
+    const double min_sin = std::sin(options.idi.min_angle_deg * kDetPi / 180.0);
+    const double max_sin = std::sin(eo.junction_refit_angle_deg * kDetPi / 180.0);
+    const std::size_t n = fits->size();
+    std::vector<std::vector<std::size_t>> near(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      for (std::size_t j = i + 1; j < n; ++j) {
+        const EmplLine& a = (*fits)[i].line;
+        const EmplLine& b = (*fits)[j].line;
+        const double det = a.normal.x() * b.normal.y() - a.normal.y() * b.normal.x();
+        if (std::fabs(det) < min_sin || std::fabs(det) > max_sin) {
+          continue;
+        }
+        const Vec2d x((a.offset * b.normal.y() - b.offset * a.normal.y()) / det,
+                      (a.normal.x() * b.offset - b.normal.x() * a.offset) / det);
+        if (DistanceBeyondSegment(a, x) > (a.extension1 - a.p1).norm() + Clearance(a) ||
+            DistanceBeyondSegment(b, x) > (b.extension1 - b.p1).norm() + Clearance(b)) {
+          continue;
+        }
+        // A wedge, not a bend: both lines run away from the junction on the same side, so their edges
+        // run side by side (at an obtuse bend they part at once).
+        if ((0.5 * (a.p1 + a.p2) - x).dot(0.5 * (b.p1 + b.p2) - x) <= 0) {
+          continue;
+        }
+        near[i].push_back(j);
+        near[j].push_back(i);
+      }
+    }
+    std::vector<std::optional<EmplFitResult>> refits(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (near[i].empty()) {
+        continue;
+      }
+      const EmplLine& l = (*fits)[i].line;
+      EmplRequest req;
+      req.segment.normal = l.normal;
+      req.segment.offset = l.offset;
+      const Vec2d foot = l.normal * l.offset, dir = LineDirection(l.normal);
+      req.segment.t0 = std::min(dir.dot(l.p1 - foot), dir.dot(l.p2 - foot));
+      req.segment.t1 = std::max(dir.dot(l.p1 - foot), dir.dot(l.p2 - foot));
+      req.t_limit_lo = req.segment.t0 - 2.0;
+      req.t_limit_hi = req.segment.t1 + 2.0;
+      req.split_depth = 2;  // the first fit already decided whether this is one line
+      req.avoid_clearance_px = Clearance(l);
+      for (const std::size_t j : near[i]) {
+        req.avoid.emplace_back((*fits)[j].line.extension1, (*fits)[j].line.extension2);
+      }
+      std::vector<EmplFitResult> r = fitter.Fit(req);
+      if (r.size() == 1 && r[0].line.length_px >= 0.9 * l.length_px) {
+        refits[i] = std::move(r[0]);
+      }
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      if (refits[i]) {
+        (*fits)[i] = std::move(*refits[i]);
+      }
+    }
+  }
 };
 
 FeatureDetector::FeatureDetector(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -371,6 +444,7 @@ Result<FeatureResult> FeatureDetector::Detect(const cv::Mat& image) {
     }
   }
   m.MergeCollinear(fitter, &fits, std::move(origin));
+  m.RefitShallowJunctions(fitter, &fits);
   // Longest first: stable ids that favour the best-supported lines.
   std::sort(fits.begin(), fits.end(),
             [](const EmplFitResult& a, const EmplFitResult& b) { return a.line.length_px > b.line.length_px; });

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "shared/features/analytic_images.h"
 #include "shared/features/features.h"
@@ -38,6 +39,46 @@ TEST(DetectorTest, LCornerIsOneIdiPointWithItsTwoLines) {
   EXPECT_GT(p.covariance(0, 0), 0);
   EXPECT_LT(std::sqrt(p.covariance(0, 0) + p.covariance(1, 1)), 0.03);
   EXPECT_GT(r->timing.total_ms, 0);
+}
+
+// A corner whose lines meet at 24 deg (a box corner seen obliquely): near the apex the two blurred edges
+// overlap and pull each line's fit away from the other, which moves the IDI point out of the wedge along
+// its bisector. The refit clear of the other line removes that (EmplOptions::junction_refit_angle_deg).
+TEST(DetectorTest, ShallowCornerIsNotPulledOutOfTheWedge) {
+  FeatureOptions off;
+  off.empl.junction_refit_angle_deg = 0;
+  constexpr int kImages = 10;
+  for (const bool refit : {true, false}) {
+    double bias = 0, sum2 = 0;
+    int found = 0;
+    for (int k = 0; k < kImages; ++k) {
+      const Vec2d apex(60.3 + 0.17 * k, 60.7 - 0.11 * k);
+      const double bisector = 0.05 * (k - 3);
+      const cv::Mat img = analytic::Quantize(
+          analytic::WedgeImage(200, 120, apex.x(), apex.y(), bisector, 24 * 3.14159265358979323846 / 180, 40, 190, 1.0),
+          5.0,
+          100 + static_cast<std::uint64_t>(k));
+      const auto r = refit ? DetectFeatures(img) : DetectFeatures(img, off);
+      ASSERT_TRUE(r.ok());
+      double d;
+      const IdiPoint* p = Nearest(*r, apex, &d);
+      if (p == nullptr || d > 3.0) continue;
+      ++found;
+      sum2 += d * d;
+      bias += (p->xy - apex).dot(Vec2d(std::cos(bisector), std::sin(bisector)));
+    }
+    ASSERT_EQ(found, kImages) << "refit " << refit;
+    bias /= kImages;
+    const double rms = std::sqrt(sum2 / kImages);
+    std::printf("refit %d: bias along the bisector %+.3f px, RMS %.3f px\n", refit ? 1 : 0, bias, rms);
+    if (refit) {
+      EXPECT_LT(std::fabs(bias), 0.03);
+      EXPECT_LT(rms, 0.05);
+    } else {
+      // What the refit removes: without it the same images put the point this far out of the wedge.
+      EXPECT_LT(bias, -0.05);
+    }
+  }
 }
 
 TEST(DetectorTest, ChessboardJunctionsAreAllFoundAndPrecise) {

@@ -92,7 +92,26 @@ struct EmplFitter::Station {
   int sign = 0;                 // contrast sign relative to the normal
   double width2 = 0;            // squared width of the gradient profile (Gaussian fit), 0 if unknown
   double tangential = 0;        // largest gradient component along the line within the band
+  bool avoided = false;         // near an edge the request keeps clear of: confirms the extent, not fitted
 };
+
+namespace {
+
+// Whether `p` lies within the request's clearance of one of the segments it avoids.
+bool NearAvoided(const EmplRequest& request, const Vec2d& p) {
+  const double c2 = request.avoid_clearance_px * request.avoid_clearance_px;
+  for (const auto& [a, b] : request.avoid) {
+    const Vec2d d = b - a;
+    const double len2 = d.squaredNorm();
+    const double t = len2 > 0 ? std::clamp(d.dot(p - a) / len2, 0.0, 1.0) : 0.0;
+    if ((a + t * d - p).squaredNorm() < c2) {
+      return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
 
 double ExtensionLength(const EmplOptions& o, double length_px) {
   return std::clamp(o.extension_fraction * length_px, o.min_extension_px, o.max_extension_px);
@@ -494,6 +513,9 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
     }
     run_begin = best_b;
     run_end = best_e;
+    for (std::size_t i = run_begin; i < run_end; ++i) {
+      st[i].avoided = NearAvoided(request, st[i].point);
+    }
     // Fit eq. 7.26 with outlier rejection.
     for (int pass = 0; pass < 2; ++pass) {
       pts.clear();
@@ -501,7 +523,7 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
       alphas.clear();
       idx.clear();
       for (std::size_t i = run_begin; i < run_end; ++i) {
-        if (st[i].valid && !st[i].outlier) {
+        if (st[i].valid && !st[i].outlier && !st[i].avoided) {
           pts.push_back(st[i].point);
           wts.push_back(st[i].strength);
           alphas.push_back(st[i].grad_angle);
@@ -652,6 +674,8 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
         child.segment.t1 = carried(side == 0 ? t_split - 1 : st[idx.back()].t);
         child.t_limit_lo = carried(side == 0 ? request.t_limit_lo : t_split + 0.5);
         child.t_limit_hi = carried(side == 0 ? t_split - 0.5 : request.t_limit_hi);
+        child.avoid = request.avoid;
+        child.avoid_clearance_px = request.avoid_clearance_px;
         for (EmplFitResult& r : Fit(child)) {
           out.push_back(std::move(r));
         }
@@ -727,7 +751,7 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
   const double end_margin = std::max(eo.end_margin_px, 1.5 * sigma);
   for (std::size_t i = begin; i < end; ++i) {
     const Station& s = st[i];
-    if (!s.valid || s.outlier || s.t < t0 + end_margin || s.t > t1 - end_margin) {
+    if (!s.valid || s.outlier || s.avoided || s.t < t0 + end_margin || s.t > t1 - end_margin) {
       continue;
     }
     // Another edge crossing the band (corners, junctions, clutter) breaks the one-step model.

@@ -20,6 +20,12 @@ struct EmplRequest {
   double t_limit_lo = -std::numeric_limits<double>::infinity();
   double t_limit_hi = std::numeric_limits<double>::infinity();
   int split_depth = 0;
+  // Edges of other lines (segments in fit coordinates) the fit keeps clear of: a station within
+  // avoid_clearance_px of one still confirms the extent but is left out of the fit. A shallow
+  // junction's other edge runs inside this edge's band, and its blur pulls this edge's profile, over
+  // many pixels from the junction.
+  std::vector<std::pair<Vec2d, Vec2d>> avoid;
+  double avoid_clearance_px = 0;
 };
 
 // The result of one fit: the line (id unset) and its extent along LineDirection(normal) from the

@@ -105,6 +105,12 @@ struct EmplOptions {
   double extension_fraction = 0.1;
   double min_extension_px = 4.0;
   double max_extension_px = 25.0;
+  // Two lines that form a wedge (both run away from their intersection on the same side) at less than
+  // this angle, and more than IdiOptions::min_angle_deg, are refitted without the stations where the
+  // other line's edge is within reach of their band (3 px plus four blur sigmas): near a shallow apex the
+  // two blurred edges overlap and pull both fits apart, which moves the IDI point out of the wedge
+  // (0.075 px at 24 deg and A/sigma_n = 30; more at lower angles and contrast). 0 turns the refit off.
+  double junction_refit_angle_deg = 40.0;
 
   Status Check() const;
 };

@@ -7,8 +7,9 @@
 //   C. the 640x480 chessboard anchors, and IDI points against Harris corners (§7.13.2): found,
 //      missed, spurious, error;
 //   D. corners of the twin's object scenes with clutter (and with lens distortion): found/spurious;
-//   E. time per 640x480 frame, single thread, against EDLines, LSD and Canny in the same run.
-// Usage: features_bench [--quick] [--section A|B|C|D|E]. Prints markdown tables.
+//   E. time per 640x480 frame, single thread, against EDLines, LSD and Canny in the same run;
+//   F. IDI points against the angle between their lines (shallow junctions), and error / own sigma.
+// Usage: features_bench [--quick] [--section A|B|C|D|E|F]. Prints markdown tables.
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -291,13 +292,14 @@ struct Junction {
   std::vector<TrueLine> lines;  // the lines meeting there, with their visible extents
 };
 
-Junction MakeJunction(const std::string& type, double contrast, std::mt19937& rng) {
+// The second line's direction is min_deg..max_deg away from the first's (60..120 by default).
+Junction MakeJunction(
+    const std::string& type, double contrast, std::mt19937& rng, double min_deg = 60, double max_deg = 120) {
   std::uniform_real_distribution<double> u(0, 1);
   const double th = u(rng) * kPi;
   const Vec2d c(96 + u(rng) - 0.5, 96 + u(rng) - 0.5);
   const Vec2d e1(std::cos(th), std::sin(th));
-  // Second direction 60..120 deg away.
-  const double th2 = th + (60 + 60 * u(rng)) * kPi / 180;
+  const double th2 = th + (min_deg + (max_deg - min_deg) * u(rng)) * kPi / 180;
   const Vec2d e2(std::cos(th2), std::sin(th2));
   const double s = 70;  // arm length
   const double bg = 0.2, fg = bg + contrast / 200.0;
@@ -427,6 +429,85 @@ void SectionB(bool quick) {
       row("IDI point", s_idi, b_idi);
       row("cornerSubPix 11x11", s_csp, b_csp);
       row("LSD intersection", s_lsd, b_lsd);
+      std::fflush(stdout);
+    }
+  }
+}
+
+// ---- F: junction angle ---------------------------------------------------------------------------
+
+// IDI points where the two lines meet at a shallow angle (a box's corner seen obliquely): the error against
+// the bound propagated from the two lines, and against the point's own covariance (is it honest?).
+void SectionF(bool quick) {
+  std::printf("\n## F. IDI points against the angle between their lines (L-corners, 192x192 px, arms 70 px)\n\n");
+  std::printf(
+      "err/sigma: the error over the point's own predicted RMS (sqrt of its covariance's trace); about 1 when the\n");
+  std::printf(
+      "covariance is honest. bias: the mean error along the corner's bisector (+ into the corner's wedge).\n\n");
+  std::printf(
+      "| angle deg | A | A/sigma_n | sigma_b | trials | found | RMS px | bias along bisector px | bound px | RMS/bound "
+      "| "
+      "median err/sigma |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
+  const CameraModel cam = FlatCamera(192, 192);
+  auto det = FeatureDetector::Create(FeatureOptions{});
+  struct Cfg {
+    double a, ratio, blur;
+  };
+  const std::vector<Cfg> cfgs = {{150, 30, 1}, {40, 15, 1.5}};
+  const int trials = quick ? 15 : 60;
+  for (const Cfg& c : cfgs) {
+    for (const double angle : {12.0, 16.0, 20.0, 30.0, 45.0, 90.0}) {
+      Stats s;
+      std::vector<double> ratio;
+      double bias = 0, bound2 = 0;
+      std::mt19937 rng(static_cast<unsigned>(angle * 7 + c.ratio));
+      const double sn = c.a / c.ratio;
+      for (int t = 0; t < trials; ++t) {
+        const Junction j = MakeJunction("L", c.a, rng, angle, angle);
+        const cv::Mat img = Render(FlatScene(cam, j.bg, j.polys), cam, c.blur, sn, 900 + static_cast<std::uint64_t>(t));
+        std::vector<EmplLine> bl(2);
+        for (int k = 0; k < 2; ++k) {
+          const TrueLine& tl = j.lines[static_cast<std::size_t>(k)];
+          bl[static_cast<std::size_t>(k)].normal = tl.n;
+          bl[static_cast<std::size_t>(k)].offset = tl.d;
+          bl[static_cast<std::size_t>(k)].covariance =
+              BoundCovariance(tl.n, 0.5 * (tl.a + tl.b), c.a, sn, c.blur, (tl.b - tl.a).norm());
+        }
+        if (auto x = IntersectWithCovariance(bl[0], bl[1])) bound2 += x->covariance.trace();
+        ++s.trials;
+        auto r = det->Detect(img);
+        if (!r.ok()) continue;
+        const IdiPoint* best = nullptr;
+        double bd = 3.0;
+        for (const IdiPoint& p : r->points) {
+          if ((p.xy - j.truth).norm() < bd) {
+            bd = (p.xy - j.truth).norm();
+            best = &p;
+          }
+        }
+        if (!best) continue;
+        ++s.found;
+        s.Add(bd);
+        ratio.push_back(bd / std::sqrt(std::max(best->covariance.trace(), 1e-18)));
+        const Vec2d bisector =
+            ((j.lines[0].b - j.lines[0].a).normalized() + (j.lines[1].b - j.lines[1].a).normalized()).normalized();
+        bias += bisector.dot(best->xy - j.truth);
+      }
+      std::sort(ratio.begin(), ratio.end());
+      const double bound = std::sqrt(bound2 / trials);
+      std::printf("| %.0f | %.0f | %.0f | %.1f | %d | %.2f | %.4f | %+.4f | %.4f | %.2f | %.2f |\n",
+                  angle,
+                  c.a,
+                  c.ratio,
+                  c.blur,
+                  s.trials,
+                  s.Rate(),
+                  s.Rms(),
+                  s.found ? bias / s.found : NAN,
+                  bound,
+                  s.Rms() / bound,
+                  ratio.empty() ? NAN : ratio[ratio.size() / 2]);
       std::fflush(stdout);
     }
   }
@@ -820,7 +901,7 @@ void SectionE(bool quick) {
 
 int main(int argc, char** argv) {
   bool quick = false;
-  std::string section = "ABCDE";
+  std::string section = "ABCDEF";
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--quick") quick = true;
@@ -832,5 +913,6 @@ int main(int argc, char** argv) {
   if (section.find('B') != std::string::npos) idi::SectionB(quick);
   if (section.find('C') != std::string::npos) idi::SectionC(quick);
   if (section.find('D') != std::string::npos) idi::SectionD(quick);
+  if (section.find('F') != std::string::npos) idi::SectionF(quick);
   return 0;
 }
