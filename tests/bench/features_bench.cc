@@ -324,6 +324,33 @@ Junction MakeJunction(
 
 std::optional<Vec2d> Intersect(const Line2d& a, const Line2d& b) { return IntersectLines2(a, b, 1e-6); }
 
+// The IDI point nearest `xy` within `radius` px (its distance in *dist), or null.
+const IdiPoint* NearestPoint(const FeatureResult& r, const Vec2d& xy, double radius, double* dist) {
+  const IdiPoint* best = nullptr;
+  *dist = radius;
+  for (const IdiPoint& p : r.points) {
+    if ((p.xy - xy).norm() < *dist) {
+      *dist = (p.xy - xy).norm();
+      best = &p;
+    }
+  }
+  return best;
+}
+
+// Trace of the bound covariance of the junction's point: each line's Cramér-Rao offset/angle covariance
+// for its visible length and `contrast`, propagated to the intersection (0 when they do not intersect).
+double JunctionBoundTrace(const Junction& j, double contrast, double sn, double blur) {
+  std::vector<EmplLine> bl(2);
+  for (std::size_t k = 0; k < 2; ++k) {
+    const TrueLine& tl = j.lines[k];
+    bl[k].normal = tl.n;
+    bl[k].offset = tl.d;
+    bl[k].covariance = BoundCovariance(tl.n, 0.5 * (tl.a + tl.b), contrast, sn, blur, (tl.b - tl.a).norm());
+  }
+  const auto x = IntersectWithCovariance(bl[0], bl[1]);
+  return x ? x->covariance.trace() : 0.0;
+}
+
 void SectionB(bool quick) {
   std::printf("\n## B. IDI points on L-corners, T- and X-junctions (192x192 px, arms 70 px, angles 60-120 deg)\n\n");
   std::printf("Bound: each line's Cramér-Rao offset/angle covariance for its visible length, propagated to the intersection.\n");
@@ -370,28 +397,12 @@ void SectionB(bool quick) {
         const Junction j = MakeJunction(type, c.a, rng);
         const cv::Mat img = Render(FlatScene(cam, j.bg, j.polys), cam, c.blur, sn, 500 + static_cast<std::uint64_t>(t));
         // Bound: lines of their visible lengths (T: the stem has contrast/2 on one side... use its own).
-        std::vector<EmplLine> bl(2);
-        for (int k = 0; k < 2; ++k) {
-          const TrueLine& tl = j.lines[static_cast<std::size_t>(k)];
-          bl[static_cast<std::size_t>(k)].normal = tl.n;
-          bl[static_cast<std::size_t>(k)].offset = tl.d;
-          const double contrast = (type == "T") ? c.a * 0.5 : c.a;
-          bl[static_cast<std::size_t>(k)].covariance =
-              BoundCovariance(tl.n, 0.5 * (tl.a + tl.b), contrast, sn, c.blur, (tl.b - tl.a).norm());
-        }
-        if (auto x = IntersectWithCovariance(bl[0], bl[1])) bound2 += x->covariance.trace();
+        bound2 += JunctionBoundTrace(j, (type == "T") ? c.a * 0.5 : c.a, sn, c.blur);
         // IDI.
         ++s_idi.trials;
         if (auto r = det->Detect(img); r.ok()) {
-          const IdiPoint* best = nullptr;
-          double bd = 3.0;
-          for (const IdiPoint& p : r->points) {
-            if ((p.xy - j.truth).norm() < bd) {
-              bd = (p.xy - j.truth).norm();
-              best = &p;
-            }
-          }
-          if (best) {
+          double bd = 0;
+          if (const IdiPoint* best = NearestPoint(*r, j.truth, 3.0, &bd)) {
             ++s_idi.found;
             s_idi.Add(bd);
             b_idi += best->xy - j.truth;
@@ -466,26 +477,12 @@ void SectionF(bool quick) {
       for (int t = 0; t < trials; ++t) {
         const Junction j = MakeJunction("L", c.a, rng, angle, angle);
         const cv::Mat img = Render(FlatScene(cam, j.bg, j.polys), cam, c.blur, sn, 900 + static_cast<std::uint64_t>(t));
-        std::vector<EmplLine> bl(2);
-        for (int k = 0; k < 2; ++k) {
-          const TrueLine& tl = j.lines[static_cast<std::size_t>(k)];
-          bl[static_cast<std::size_t>(k)].normal = tl.n;
-          bl[static_cast<std::size_t>(k)].offset = tl.d;
-          bl[static_cast<std::size_t>(k)].covariance =
-              BoundCovariance(tl.n, 0.5 * (tl.a + tl.b), c.a, sn, c.blur, (tl.b - tl.a).norm());
-        }
-        if (auto x = IntersectWithCovariance(bl[0], bl[1])) bound2 += x->covariance.trace();
+        bound2 += JunctionBoundTrace(j, c.a, sn, c.blur);
         ++s.trials;
         auto r = det->Detect(img);
         if (!r.ok()) continue;
-        const IdiPoint* best = nullptr;
-        double bd = 3.0;
-        for (const IdiPoint& p : r->points) {
-          if ((p.xy - j.truth).norm() < bd) {
-            bd = (p.xy - j.truth).norm();
-            best = &p;
-          }
-        }
+        double bd = 0;
+        const IdiPoint* best = NearestPoint(*r, j.truth, 3.0, &bd);
         if (!best) continue;
         ++s.found;
         s.Add(bd);
