@@ -737,6 +737,10 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
   const EmplOptions& eo = options_.empl;
   double theta = *theta_io, e = *e_io, sigma = std::clamp(sigma_init, 0.3, 6.0);
   const int half = std::clamp(static_cast<int>(std::ceil(2.0 * sigma + 1.5)), 3, 9);
+  const int wide = 2 * half + 2;
+  const double flat_g = edges_.low_threshold;
+  const float flat_g2 = static_cast<float>(flat_g * flat_g);
+  const int flat_margin = static_cast<int>(std::ceil(sigma)) + 1;
   const int w = g_.width(), h = g_.height();
   // Pixels of the clean stations, grouped into chunks with their own contrast and background.
   using Px = EmplPixel;
@@ -770,7 +774,31 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
     ++stations_used;
     last_sign = s.sign;
     last_t = s.t;
-    for (int k = -half; k <= half; ++k) {
+    // Beyond +-half the band goes on over the flat image on each side, up to +-wide: those pixels fix the
+    // chunk's background and contrast, with which the edge's position is otherwise confounded (both move
+    // the pixels near the edge the same way). With +-4 px alone that costs 40 % of the information on the
+    // offset (the fit's error was 1.3 times the Cramer-Rao bound). The band stops short of the first pixel
+    // whose gradient passes Canny's low threshold: another edge or texture, whose blur reaches a little
+    // way towards this edge.
+    const int minor_size = s.horizontal ? h : w;
+    int reach[2] = {half, half};
+    for (int side = 0; side < 2; ++side) {
+      const int dir = side == 0 ? -1 : 1;
+      int k = half + 1;
+      for (; k <= wide; ++k) {
+        const int m = s.minor_base + dir * k;
+        if (m < 0 || m >= minor_size) {
+          break;
+        }
+        const float g2 = s.horizontal ? g_.mag2.at<float>(m, s.major) : g_.mag2.at<float>(s.major, m);
+        if (g2 > flat_g2) {
+          k -= flat_margin;
+          break;
+        }
+      }
+      reach[side] = std::max(half, k - 1);
+    }
+    for (int k = -reach[0]; k <= reach[1]; ++k) {
       const int x = s.horizontal ? s.major : s.minor_base + k;
       const int y = s.horizontal ? s.minor_base + k : s.major;
       const Vec2d u = geometry_.ToFit(x, y) - centre;
