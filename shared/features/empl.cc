@@ -850,6 +850,7 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
   std::vector<double> prev_a = a, prev_b = b;
   Eigen::Matrix3d prev_s = s_mat;
   double outlier_cut = std::numeric_limits<double>::infinity();
+  constexpr double kFlatZ = 4.5;  // Phi(4.5) = 1 - 3.4e-6
   for (int iter = 0; iter < 6; ++iter) {
     for (ChunkAcc& ck : chunks) {
       ck = ChunkAcc{};
@@ -862,9 +863,27 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
         continue;
       }
       const double z = (c * p.ux + s * p.uy - e) * inv_sigma;
+      const std::size_t k = static_cast<std::size_t>(p.chunk);
+      if (std::fabs(z) > kFlatZ) {
+        // The flat image beside the edge (most of the band): it tells only the chunk's background and
+        // contrast, and the step's slope there is below 2e-5 of its peak.
+        const double cdf = z > 0 ? 1.0 : 0.0;
+        const double r = p.value - (b[k] + a[k] * cdf);
+        if (std::fabs(r) > outlier_cut) {
+          p.weight = 0.0f;
+          continue;
+        }
+        ChunkAcc& ck = chunks[k];
+        ck.hcc00 += cdf;
+        ck.hcc01 += cdf;
+        ck.hcc11 += 1.0;
+        ck.bc0 += cdf * r;
+        ck.bc1 += r;
+        rss += r * r;
+        continue;
+      }
       double cdf, pdf;
       normal.Eval(z, &cdf, &pdf);
-      const std::size_t k = static_cast<std::size_t>(p.chunk);
       const double r = p.value - (b[k] + a[k] * cdf);
       if (std::fabs(r) > outlier_cut) {
         p.weight = 0.0f;  // specks and clutter far off the model
