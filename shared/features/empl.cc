@@ -866,7 +866,7 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
       const std::size_t k = static_cast<std::size_t>(p.chunk);
       if (std::fabs(z) > kFlatZ) {
         // The flat image beside the edge (most of the band): it tells only the chunk's background and
-        // contrast, and the step's slope there is below 2e-5 of its peak.
+        // contrast; the step's slope there is below 4e-5 of its peak.
         const double cdf = z > 0 ? 1.0 : 0.0;
         const double r = p.value - (b[k] + a[k] * cdf);
         if (std::fabs(r) > outlier_cut) {
