@@ -45,7 +45,8 @@ TEST(DetectorTest, LCornerIsOneIdiPointWithItsTwoLines) {
 // overlap and pull each line's fit away from the other, which moves the IDI point out of the wedge along
 // its bisector. The refit clear of the other line removes that (EmplOptions::junction_refit_angle_deg).
 TEST(DetectorTest, ShallowCornerIsNotPulledOutOfTheWedge) {
-  FeatureOptions off;
+  FeatureOptions on, off;
+  on.empl.junction_refit_angle_deg = 40;
   off.empl.junction_refit_angle_deg = 0;
   constexpr int kImages = 10;
   for (const bool refit : {true, false}) {
@@ -58,7 +59,7 @@ TEST(DetectorTest, ShallowCornerIsNotPulledOutOfTheWedge) {
           analytic::WedgeImage(200, 120, apex.x(), apex.y(), bisector, 24 * 3.14159265358979323846 / 180, 40, 190, 1.0),
           5.0,
           100 + static_cast<std::uint64_t>(k));
-      const auto r = refit ? DetectFeatures(img) : DetectFeatures(img, off);
+      const auto r = DetectFeatures(img, refit ? on : off);
       ASSERT_TRUE(r.ok());
       double d;
       const IdiPoint* p = Nearest(*r, apex, &d);

@@ -456,56 +456,63 @@ void SectionF(bool quick) {
   std::printf(
       "covariance is honest. bias: the mean error along the corner's bisector (+ into the corner's wedge).\n\n");
   std::printf(
-      "| angle deg | A | A/sigma_n | sigma_b | trials | found | RMS px | bias along bisector px | bound px | RMS/bound "
+      "| refit deg | angle deg | A | A/sigma_n | sigma_b | trials | found | RMS px | bias along bisector px | bound px "
       "| "
-      "median err/sigma |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
+      "RMS/bound | median err/sigma |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   const CameraModel cam = FlatCamera(192, 192);
-  auto det = FeatureDetector::Create(FeatureOptions{});
   struct Cfg {
     double a, ratio, blur;
   };
   const std::vector<Cfg> cfgs = {{150, 30, 1}, {40, 15, 1.5}};
   const int trials = quick ? 15 : 60;
-  for (const Cfg& c : cfgs) {
-    for (const double angle : {12.0, 16.0, 20.0, 30.0, 45.0, 90.0}) {
-      Stats s;
-      std::vector<double> ratio;
-      double bias = 0, bound2 = 0;
-      std::mt19937 rng(static_cast<unsigned>(angle * 7 + c.ratio));
-      const double sn = c.a / c.ratio;
-      for (int t = 0; t < trials; ++t) {
-        const Junction j = MakeJunction("L", c.a, rng, angle, angle);
-        const cv::Mat img = Render(FlatScene(cam, j.bg, j.polys), cam, c.blur, sn, 900 + static_cast<std::uint64_t>(t));
-        bound2 += JunctionBoundTrace(j, c.a, sn, c.blur);
-        ++s.trials;
-        auto r = det->Detect(img);
-        if (!r.ok()) continue;
-        double bd = 0;
-        const IdiPoint* best = NearestPoint(*r, j.truth, 3.0, &bd);
-        if (!best) continue;
-        ++s.found;
-        s.Add(bd);
-        ratio.push_back(bd / std::sqrt(std::max(best->covariance.trace(), 1e-18)));
-        const Vec2d bisector =
-            ((j.lines[0].b - j.lines[0].a).normalized() + (j.lines[1].b - j.lines[1].a).normalized()).normalized();
-        bias += bisector.dot(best->xy - j.truth);
+  // The default detector, and with the refit of shallow wedges (EmplOptions::junction_refit_angle_deg) on.
+  for (const double refit : {FeatureOptions{}.empl.junction_refit_angle_deg, 40.0}) {
+    FeatureOptions fo;
+    fo.empl.junction_refit_angle_deg = refit;
+    auto det = FeatureDetector::Create(fo);
+    for (const Cfg& c : cfgs) {
+      for (const double angle : {12.0, 16.0, 20.0, 30.0, 45.0, 90.0}) {
+        Stats s;
+        std::vector<double> ratio;
+        double bias = 0, bound2 = 0;
+        std::mt19937 rng(static_cast<unsigned>(angle * 7 + c.ratio));
+        const double sn = c.a / c.ratio;
+        for (int t = 0; t < trials; ++t) {
+          const Junction j = MakeJunction("L", c.a, rng, angle, angle);
+          const cv::Mat img =
+              Render(FlatScene(cam, j.bg, j.polys), cam, c.blur, sn, 900 + static_cast<std::uint64_t>(t));
+          bound2 += JunctionBoundTrace(j, c.a, sn, c.blur);
+          ++s.trials;
+          auto r = det->Detect(img);
+          if (!r.ok()) continue;
+          double bd = 0;
+          const IdiPoint* best = NearestPoint(*r, j.truth, 3.0, &bd);
+          if (!best) continue;
+          ++s.found;
+          s.Add(bd);
+          ratio.push_back(bd / std::sqrt(std::max(best->covariance.trace(), 1e-18)));
+          const Vec2d bisector =
+              ((j.lines[0].b - j.lines[0].a).normalized() + (j.lines[1].b - j.lines[1].a).normalized()).normalized();
+          bias += bisector.dot(best->xy - j.truth);
+        }
+        std::sort(ratio.begin(), ratio.end());
+        const double bound = std::sqrt(bound2 / trials);
+        std::printf("| %.0f | %.0f | %.0f | %.0f | %.1f | %d | %.2f | %.4f | %+.4f | %.4f | %.2f | %.2f |\n",
+                    refit,
+                    angle,
+                    c.a,
+                    c.ratio,
+                    c.blur,
+                    s.trials,
+                    s.Rate(),
+                    s.Rms(),
+                    s.found ? bias / s.found : NAN,
+                    bound,
+                    s.Rms() / bound,
+                    ratio.empty() ? NAN : ratio[ratio.size() / 2]);
+        std::fflush(stdout);
       }
-      std::sort(ratio.begin(), ratio.end());
-      const double bound = std::sqrt(bound2 / trials);
-      std::printf("| %.0f | %.0f | %.0f | %.1f | %d | %.2f | %.4f | %+.4f | %.4f | %.2f | %.2f |\n",
-                  angle,
-                  c.a,
-                  c.ratio,
-                  c.blur,
-                  s.trials,
-                  s.Rate(),
-                  s.Rms(),
-                  s.found ? bias / s.found : NAN,
-                  bound,
-                  s.Rms() / bound,
-                  ratio.empty() ? NAN : ratio[ratio.size() / 2]);
-      std::fflush(stdout);
     }
   }
 }
