@@ -737,7 +737,7 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
   const EmplOptions& eo = options_.empl;
   double theta = *theta_io, e = *e_io, sigma = std::clamp(sigma_init, 0.3, 6.0);
   const int half = std::clamp(static_cast<int>(std::ceil(2.0 * sigma + 1.5)), 3, 9);
-  const int wide = 2 * half + 2;
+  const int wide = eo.photometric_flat_band ? 2 * half + 2 : half;
   const double flat_g = edges_.low_threshold;
   const float flat_g2 = static_cast<float>(flat_g * flat_g);
   const int flat_margin = static_cast<int>(std::ceil(sigma)) + 1;
@@ -774,7 +774,8 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
     ++stations_used;
     last_sign = s.sign;
     last_t = s.t;
-    // Beyond +-half the band goes on over the flat image on each side, up to +-wide: those pixels fix the
+    // With photometric_flat_band, beyond +-half the band goes on over the flat image on each side, up to
+    // +-wide: those pixels fix the
     // chunk's background and contrast, with which the edge's position is otherwise confounded (both move
     // the pixels near the edge the same way). With +-4 px alone that costs 40 % of the information on the
     // offset (the fit's error was 1.3 times the Cramer-Rao bound). The band stops short of the first pixel

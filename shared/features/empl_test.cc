@@ -82,17 +82,19 @@ TEST(EmplTest, NoisyEdgeReachesTheBoundAndItsCovarianceIsHonest) {
   EXPECT_LT(predicted, 1.5 * bound);
 }
 
-// The photometric fit takes the flat image beside the edge into its band (up to 2 half-widths + 2 px
-// each side): the background and contrast of a chunk are then fixed by pixels the edge does not move,
-// and the offset gets nearly all the information the bound counts. With the band at +-4 px only
-// (2 sigma + 1.5), the fit's own predicted error was 1.32 times the bound on this edge.
+// With photometric_flat_band the photometric fit takes the flat image beside the edge into its band (up
+// to 2 half-widths + 2 px each side): the background and contrast of a chunk are then fixed by pixels the edge does not
+// move, and the offset gets nearly all the information the bound counts. With the band at +-4 px only (2 sigma + 1.5),
+// the fit's own predicted error was 1.32 times the bound on this edge.
 TEST(EmplTest, PhotometricBandTakesTheFlatImageBesideTheEdge) {
   const double contrast = 150, noise = 10, blur = 1.0;
   const Vec2d n(std::cos(0.3), std::sin(0.3));
   const Vec2d c(64.3, 48.6);
   const double d = n.dot(c);
   const cv::Mat clean = analytic::EdgeImage(128, 96, n, d, 50, contrast, blur);
-  auto detector = FeatureDetector::Create(FeatureOptions{});
+  FeatureOptions o;
+  o.empl.photometric_flat_band = true;
+  auto detector = FeatureDetector::Create(o);
   ASSERT_TRUE(detector.ok());
   double sum2 = 0, pred = 0, len = 0;
   const int trials = 60;

@@ -219,6 +219,9 @@ void SectionA(bool quick) {
   FeatureOptions go;
   go.empl.photometric_refinement = false;
   auto gradient_only = FeatureDetector::Create(go);
+  FeatureOptions wo;
+  wo.empl.photometric_flat_band = true;
+  auto flat_band = FeatureDetector::Create(wo);
   struct Cfg {
     double a, ratio, blur;
   };
@@ -227,9 +230,9 @@ void SectionA(bool quick) {
   const int trials = quick ? 20 : 80;
   for (const Cfg& c : cfgs) {
     for (double len : lengths) {
-      Stats s_p, s_g, s_l, ang_p;
-      double pred = 0;
-      int npred = 0;
+      Stats s_p, s_g, s_w, s_l, ang_p, ang_w;
+      double pred = 0, pred_w = 0;
+      int npred = 0, npred_w = 0;
       std::mt19937 rng(static_cast<unsigned>(len * 7 + c.ratio * 3 + c.blur));
       std::uniform_real_distribution<double> u(0, 1);
       const double bg = 0.2, fg = bg + c.a / 200.0;
@@ -242,21 +245,21 @@ void SectionA(bool quick) {
         const sim::Scene scene = FlatScene(cam, bg, {rect});
         const cv::Mat img = Render(scene, cam, c.blur, c.a / c.ratio, 1000 + static_cast<std::uint64_t>(t));
         const TrueLine tl = LineThroughPts(a, b);
-        for (int m = 0; m < 2; ++m) {
-          auto r = (m == 0 ? *precise : *gradient_only).Detect(img);
-          Stats& s = m == 0 ? s_p : s_g;
+        for (int m = 0; m < 3; ++m) {
+          auto r = (m == 0 ? *precise : m == 1 ? *gradient_only : *flat_band).Detect(img);
+          Stats& s = m == 0 ? s_p : m == 1 ? s_g : s_w;
           ++s.trials;
           const EmplLine* l = r.ok() ? MatchLine(*r, tl) : nullptr;
           if (!l) continue;
           ++s.found;
           const double sgn = l->normal.dot(tl.n) > 0 ? 1 : -1;
           s.Add(-sgn * l->SignedDistance(centre));
-          if (m == 0) {
-            ang_p.Add(std::remainder(l->Angle() - std::atan2(tl.n.y(), tl.n.x()), kPi));
+          if (m != 1) {
+            (m == 0 ? ang_p : ang_w).Add(std::remainder(l->Angle() - std::atan2(tl.n.y(), tl.n.x()), kPi));
             const Vec2d nd(-l->normal.y(), l->normal.x());
             const Eigen::Vector2d j(nd.dot(centre), -1.0);
-            pred += j.dot(l->covariance * j);
-            ++npred;
+            (m == 0 ? pred : pred_w) += j.dot(l->covariance * j);
+            ++(m == 0 ? npred : npred_w);
           }
         }
         const auto segs = RunLsd(img);
@@ -276,6 +279,7 @@ void SectionA(bool quick) {
                     predicted > 0 ? std::to_string(predicted).substr(0, 6).c_str() : "-");
       };
       row("EMPL (photometric)", s_p, &ang_p, npred ? std::sqrt(pred / npred) : 0);
+      row("EMPL (photometric, flat band)", s_w, &ang_w, npred_w ? std::sqrt(pred_w / npred_w) : 0);
       row("EMPL (eq. 7.26 only)", s_g, nullptr, 0);
       row("OpenCV LSD", s_l, nullptr, 0);
       std::fflush(stdout);
