@@ -24,6 +24,17 @@ void LineErrors(const EmplLine& line, const Vec2d& n, double d, const Vec2d& at,
   *angle_err = da;
 }
 
+// Offset error of `line` at its segment's middle against the true (normal, offset), and the variance of
+// that offset that the line's own covariance predicts.
+void OffsetAtMiddle(const EmplLine& line, const Vec2d& n, double d, double* offset_err, double* predicted_var) {
+  const Vec2d mid = 0.5 * (line.p1 + line.p2);
+  double angle_err;
+  LineErrors(line, n, d, mid, offset_err, &angle_err);
+  const Vec2d nd(-line.normal.y(), line.normal.x());
+  const Eigen::Vector2d j(nd.dot(mid), -1.0);
+  *predicted_var = j.dot(line.covariance * j);
+}
+
 TEST(EmplTest, NoiseFreeEdgesAreExactAtAnyAngleAndPhase) {
   for (double deg : {0.0, 7.0, 30.0, 45.0, 61.0, 90.0, 112.0, 135.0, 171.0}) {
     for (double phase : {0.0, 0.25, 0.5}) {
@@ -61,15 +72,11 @@ TEST(EmplTest, NoisyEdgeReachesTheBoundAndItsCovarianceIsHonest) {
     ASSERT_TRUE(r.ok());
     ASSERT_EQ(r->lines.size(), 1u);
     const EmplLine& l = r->lines[0];
-    const Vec2d mid = 0.5 * (l.p1 + l.p2);
-    double oe, ae;
-    LineErrors(l, n, d, mid, &oe, &ae);
+    double oe, var;
+    OffsetAtMiddle(l, n, d, &oe, &var);
     sum += oe;
     sum2 += oe * oe;
-    // Predicted offset variance at the segment's middle from the line's covariance.
-    const Vec2d nd(-l.normal.y(), l.normal.x());
-    const Eigen::Vector2d j(nd.dot(mid), -1.0);
-    pred += j.dot(l.covariance * j);
+    pred += var;
     len += l.length_px;
   }
   const double rms = std::sqrt(sum2 / trials);
@@ -103,13 +110,10 @@ TEST(EmplTest, PhotometricBandTakesTheFlatImageBesideTheEdge) {
     ASSERT_TRUE(r.ok());
     ASSERT_EQ(r->lines.size(), 1u);
     const EmplLine& l = r->lines[0];
-    const Vec2d mid = 0.5 * (l.p1 + l.p2);
-    double oe, ae;
-    LineErrors(l, n, d, mid, &oe, &ae);
+    double oe, var;
+    OffsetAtMiddle(l, n, d, &oe, &var);
     sum2 += oe * oe;
-    const Vec2d nd(-l.normal.y(), l.normal.x());
-    const Eigen::Vector2d j(nd.dot(mid), -1.0);
-    pred += j.dot(l.covariance * j);
+    pred += var;
     len += l.length_px;
   }
   const double bound = OffsetBoundPx(contrast, noise, blur, len / trials);
