@@ -249,13 +249,14 @@ struct FeatureDetector::Impl {
     }
   }
 
-  // Refits the lines of shallow junctions clear of each other's edge (EmplOptions::junction_refit_angle_deg).
-  // A junction is a pair of lines meeting within both lines' unconfirmed extensions, as for an IDI
-  // point. Every refit keeps clear of the lines as they were, so the order does not matter; a refit that
-  // fails or loses a tenth of the line keeps the first fit.
   // How far another edge's blur reaches into a line's fit: the photometric band (2 sigma + 1.5 px) and the
   // other edge's own profile (2 sigma).
   static double Clearance(const EmplLine& l) { return 3.0 + 4.0 * (l.blur_sigma_px > 0 ? l.blur_sigma_px : 1.5); }
+
+  // Refits the lines of shallow junctions clear of each other's edge (EmplOptions::junction_refit_angle_deg).
+  // A junction is a pair of lines meeting within both lines' unconfirmed extensions (plus the clearance),
+  // as for an IDI point. Every refit keeps clear of the lines as they were, so the order does not matter; a
+  // refit that fails or loses a tenth of the line keeps the first fit.
 
   void RefitShallowJunctions(const EmplFitter& fitter, std::vector<EmplFitResult>* fits) const {
     const EmplOptions& eo = options.empl;

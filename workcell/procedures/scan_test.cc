@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <vector>
 
@@ -78,6 +79,17 @@ TEST(ScanTest, CorrespondenceOfBracketScenesIsPrecise) {
   std::vector<double>& epipolar = pooled.epipolar_px;
   std::nth_element(epipolar.begin(), epipolar.begin() + static_cast<long>(epipolar.size() / 2), epipolar.end());
   EXPECT_LT(epipolar[epipolar.size() / 2], 0.15) << "median epipolar error of the matched points, px";
+  // Each labelled IDI point against its true corner's image: the front end's accuracy on these images
+  // (0.05 px median over the scan study's scenes).
+  ASSERT_EQ(pooled.point_error_px.size(), pooled.point_sigma_px.size());
+  ASSERT_GT(pooled.point_error_px.size(), 50u);
+  std::vector<double> point_error = pooled.point_error_px;
+  std::nth_element(
+      point_error.begin(), point_error.begin() + static_cast<long>(point_error.size() / 2), point_error.end());
+  std::printf("IDI points against the truth: %zu, median error %.4f px\n",
+              point_error.size(),
+              point_error[point_error.size() / 2]);
+  EXPECT_LT(point_error[point_error.size() / 2], 0.1) << "median error of the labelled IDI points, px";
 }
 
 // A cylinder has no corners: it is fitted from its silhouettes (vertical tangent planes) and picked.
