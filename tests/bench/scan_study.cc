@@ -10,7 +10,11 @@
 // corners, and the epipolar error of the matched points.
 //
 // Usage: scan_study [--calibration DIR | --oracle] [--scenes 10] [--seed 1] [--stations K] [--span DEG] [--object NAME]
-//                   [--elevation DEG] [--distance MM] [--json FILE] [--out DIR]
+//                   [--elevation DEG] [--distance MM] [--flat-band] [--junction-refit DEG] [--refine-poses]
+//                   [--json FILE] [--out DIR]
+// --flat-band and --junction-refit DEG turn on the front end's opt-in fits (empl.photometric_flat_band,
+// empl.junction_refit_angle_deg), --refine-poses the bundle adjustment's view poses (within their priors),
+// to measure what they change in the scans.
 // --out DIR keeps each scene's run folder (images, regions, overlays, model) in DIR/OBJECT_SCENE.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -45,6 +49,8 @@ int Main(int argc, char** argv) {
   int scenes = 10, stations = 0;  // 0: the scan's default stations
   double span_deg = 0;             // > 0: the stations spread over +-span_deg
   double elevation_deg = 0, distance_mm = 0;
+  bool flat_band = false, refine_poses = false;
+  double junction_refit_deg = 0;
   unsigned seed = 1;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -77,10 +83,14 @@ int Main(int argc, char** argv) {
     else if (a == "--object") only = next();
     else if (a == "--elevation") elevation_deg = number();
     else if (a == "--distance") distance_mm = number();
+    else if (a == "--flat-band") flat_band = true;
+    else if (a == "--refine-poses") refine_poses = true;
+    else if (a == "--junction-refit") junction_refit_deg = number();
     else {
       fmt::print(stderr,
                  "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--seed S] [--stations K] [--span DEG] "
-                 "[--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--json FILE] [--out DIR]\n");
+                 "[--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--flat-band] "
+                 "[--junction-refit DEG] [--refine-poses] [--json FILE] [--out DIR]\n");
       return 2;
     }
   }
@@ -134,6 +144,9 @@ int Main(int argc, char** argv) {
       workcell::ScanOptions o = twin.SetupOptions();
       if (elevation_deg > 0) o.elevation_deg = elevation_deg;
       if (distance_mm > 0) o.view_distance_mm = distance_mm;
+      o.structure.features.empl.photometric_flat_band = flat_band;
+      o.structure.features.empl.junction_refit_angle_deg = junction_refit_deg;
+      o.structure.bundle_adjustment.refine_poses = refine_poses;
       if (stations > 0 || span_deg > 0) {
         // K stations (default: as many as the scan's default) evenly over +-span (default: its span).
         const double span = span_deg > 0 ? span_deg : std::abs(o.azimuths_deg.front());
@@ -246,6 +259,13 @@ int Main(int argc, char** argv) {
              match_all.true_matches, match_all.false_matches, 100.0 * match_all.precision(), 100.0 * match_all.recall(),
              match_all.found_in_both, 100.0 * match_all.recall_of_visible(), match_all.visible_in_both,
              Median(match_all.epipolar_px));
+  fmt::print(
+      "epipolar error median: pairs of one station (both cameras, one head pose) {:.4f} px over {}, pairs across "
+      "stations {:.4f} px over {}\n",
+      Median(match_all.epipolar_same_station_px),
+      match_all.epipolar_same_station_px.size(),
+      Median(match_all.epipolar_across_stations_px),
+      match_all.epipolar_across_stations_px.size());
   if (!match_all.point_error_px.empty()) {
     std::vector<double> err = match_all.point_error_px, ratio;
     for (std::size_t k = 0; k < err.size(); ++k) ratio.push_back(err[k] / std::max(match_all.point_sigma_px[k], 1e-9));

@@ -211,10 +211,13 @@ CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const 
           ++score.false_matches;
         }
         if (f) {
-          score.epipolar_px.push_back(
-              EpipolarDistance(*f,
-                               r.structure.matched_features[a].points[static_cast<std::size_t>(ia)].xy,
-                               r.structure.matched_features[b].points[static_cast<std::size_t>(ib)].xy));
+          const double d = EpipolarDistance(*f,
+                                            r.structure.matched_features[a].points[static_cast<std::size_t>(ia)].xy,
+                                            r.structure.matched_features[b].points[static_cast<std::size_t>(ib)].xy);
+          score.epipolar_px.push_back(d);
+          (r.views[a].station == r.views[b].station ? score.epipolar_same_station_px
+                                                    : score.epipolar_across_stations_px)
+              .push_back(d);
         }
       }
       score.corners_matched += static_cast<long>(matched.size());
@@ -231,6 +234,11 @@ void CorrespondenceTruth::Add(const CorrespondenceTruth& other) {
   found_in_both += other.found_in_both;
   visible_in_both += other.visible_in_both;
   epipolar_px.insert(epipolar_px.end(), other.epipolar_px.begin(), other.epipolar_px.end());
+  epipolar_same_station_px.insert(
+      epipolar_same_station_px.end(), other.epipolar_same_station_px.begin(), other.epipolar_same_station_px.end());
+  epipolar_across_stations_px.insert(epipolar_across_stations_px.end(),
+                                     other.epipolar_across_stations_px.begin(),
+                                     other.epipolar_across_stations_px.end());
   point_error_px.insert(point_error_px.end(), other.point_error_px.begin(), other.point_error_px.end());
   point_sigma_px.insert(point_sigma_px.end(), other.point_sigma_px.begin(), other.point_sigma_px.end());
   scored = scored || other.scored;

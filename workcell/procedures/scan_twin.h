@@ -58,6 +58,9 @@ struct CorrespondenceTruth {
   long found_in_both = 0;    // per pair: true corners found as an IDI point (inside the object region) in both views
   long visible_in_both = 0;  // per pair: true corners visible inside the object region in both views
   std::vector<double> epipolar_px;  // every matched pair's epipolar error (calibrated projections)
+  // The same errors split by whether the pair's views share a station (both cameras of one head pose:
+  // no arm, rail or table motion between them) or not.
+  std::vector<double> epipolar_same_station_px, epipolar_across_stations_px;
   // Every IDI point labelled with exactly one corner: its distance to that corner's image and its own
   // sigma_px (the front end's accuracy on the scan's images; the points of every view, matched or not).
   std::vector<double> point_error_px, point_sigma_px;
