@@ -11,10 +11,11 @@
 //
 // Usage: scan_study [--calibration DIR | --oracle] [--scenes 10] [--seed 1] [--stations K] [--span DEG] [--object NAME]
 //                   [--elevation DEG] [--distance MM] [--flat-band] [--junction-refit DEG] [--refine-poses]
-//                   [--json FILE] [--out DIR]
+//                   [--rail-repeatability MM] [--json FILE] [--out DIR]
 // --flat-band and --junction-refit DEG turn on the front end's opt-in fits (empl.photometric_flat_band,
 // empl.junction_refit_angle_deg), --refine-poses the bundle adjustment's view poses (within their priors),
-// to measure what they change in the scans.
+// to measure what they change in the scans; --rail-repeatability MM sets the twin's rail (0.1 mm std by
+// default; 0 lands exactly where the encoder says), to tell the rail's share of the errors.
 // --out DIR keeps each scene's run folder (images, regions, overlays, model) in DIR/OBJECT_SCENE.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -50,7 +51,7 @@ int Main(int argc, char** argv) {
   double span_deg = 0;             // > 0: the stations spread over +-span_deg
   double elevation_deg = 0, distance_mm = 0;
   bool flat_band = false, refine_poses = false;
-  double junction_refit_deg = 0;
+  double junction_refit_deg = 0, rail_repeatability_mm = -1;
   unsigned seed = 1;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -86,17 +87,26 @@ int Main(int argc, char** argv) {
     else if (a == "--flat-band") flat_band = true;
     else if (a == "--refine-poses") refine_poses = true;
     else if (a == "--junction-refit") junction_refit_deg = number();
+    else if (a == "--rail-repeatability") rail_repeatability_mm = number();
     else {
       fmt::print(stderr,
                  "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--seed S] [--stations K] [--span DEG] "
                  "[--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--flat-band] "
-                 "[--junction-refit DEG] [--refine-poses] [--json FILE] [--out DIR]\n");
+                 "[--junction-refit DEG] [--refine-poses] [--rail-repeatability MM] [--json FILE] [--out DIR]\n");
       return 2;
     }
   }
   if (scenes < 1 || stations < 0 || stations > 8 || !(span_deg >= 0 && span_deg <= 120) || (!oracle && cal_dir.empty())) {
     fmt::print(stderr, "scan_study: give --calibration DIR or --oracle; scenes >= 1; stations 1..8; span 0..120 deg\n");
     return 2;
+  }
+  {
+    workcell::ScanTwinOptions probe;
+    probe.rail_repeatability_mm = rail_repeatability_mm;
+    if (const Status st = probe.Check(); !st.ok()) {
+      fmt::print(stderr, "scan_study: {}\n", st.ToString());
+      return 2;
+    }
   }
   spdlog::set_level(spdlog::level::warn);
   workcell::ScanCalibration cal;
@@ -138,6 +148,7 @@ int Main(int argc, char** argv) {
       to.kind = kind;
       to.scene = static_cast<unsigned>(s);
       to.keep_truth = true;  // every frame's truth, for the correspondence score
+      to.rail_repeatability_mm = rail_repeatability_mm;
       workcell::ScanTwin twin(to);
       if (oracle) cal = twin.TrueCalibration();
       workcell::ScanDevices d = twin.Devices();

@@ -18,6 +18,10 @@ Status ScanTwinOptions::Check() const {
     return InvalidArgument(fmt::format("scan twin: the object's offset {} mm is outside [0, 150]", max_offset_mm));
   }
   if (clutter_objects < 0 || clutter_objects > 40) return InvalidArgument("scan twin: clutter must be 0 to 40 objects");
+  if (!(rail_repeatability_mm == -1 || (rail_repeatability_mm >= 0 && rail_repeatability_mm <= 5))) {
+    return InvalidArgument(fmt::format("scan twin: rail repeatability {} mm is outside [0, 5] (or -1: the cell's)",
+                                       rail_repeatability_mm));
+  }
   return Status::Ok();
 }
 
@@ -29,6 +33,7 @@ ScanTwin::ScanTwin(const ScanTwinOptions& options) : options_(options) {
   o.seed = options.seed;
   o.keep_truth = options.keep_truth;
   o.clutter_objects = options.clutter_objects;
+  if (options.rail_repeatability_mm >= 0) o.workcell.rail_repeatability_mm = options.rail_repeatability_mm;
   for (std::size_t i = 0; i < 2; ++i) o.head[i] = {head_[i].ptu, head_[i].Camera()};
   cell_ = std::make_unique<sim::CellTwin>(o);
   for (std::size_t i = 0; i < 2; ++i) {

@@ -25,6 +25,7 @@ struct ScanTwinOptions {
   double max_offset_mm = 60;    // the object's distance from the table centre
   int clutter_objects = 6;
   bool keep_truth = false;
+  double rail_repeatability_mm = -1;  // >= 0: replaces the cell's (0.1 mm std; 0 for a rail that lands exactly)
   Status Check() const;
 };
 
