@@ -35,12 +35,20 @@ Vec3<T> ToCamera(const T* pose, const T* x) {
   return Vec3<T>(p[0] + pose[3], p[1] + pose[4], p[2] + pose[5]);
 }
 
+// The point as its view's mount sees it: a mount shifted by s along its axis sees x at x - s * axis.
+template <typename T>
+Vec3<T> ToCamera(const T* pose, const T* x, const T* shift, const Vec3d& axis) {
+  const T xs[3] = {x[0] - shift[0] * T(axis.x()), x[1] - shift[0] * T(axis.y()), x[2] - shift[0] * T(axis.z())};
+  return ToCamera(pose, xs);
+}
+
 struct PointReprojection {
   Vec2d pixel;
   double inv_sigma;
+  Vec3d axis;
   template <typename T>
-  bool operator()(const T* point, const T* pose, const T* intrinsics, T* r) const {
-    const Vec3<T> pc = ToCamera(pose, point);
+  bool operator()(const T* point, const T* pose, const T* intrinsics, const T* shift, T* r) const {
+    const Vec3<T> pc = ToCamera(pose, point, shift, axis);
     if (!(pc.z() > T(1e-9))) return false;
     const Vec2<T> px = ProjectToPixel(intrinsics, pc);
     r[0] = (px.x() - T(pixel.x())) * T(inv_sigma);
@@ -52,9 +60,10 @@ struct PointReprojection {
 struct PointOnLine {
   Line2d line;
   double inv_sigma;
+  Vec3d axis;
   template <typename T>
-  bool operator()(const T* point, const T* pose, const T* intrinsics, T* r) const {
-    const Vec3<T> pc = ToCamera(pose, point);
+  bool operator()(const T* point, const T* pose, const T* intrinsics, const T* shift, T* r) const {
+    const Vec3<T> pc = ToCamera(pose, point, shift, axis);
     if (!(pc.z() > T(1e-9))) return false;
     const T u = intrinsics[kFx] * pc.x() / pc.z() + intrinsics[kCx];
     const T v = intrinsics[kFy] * pc.y() / pc.z() + intrinsics[kCy];
@@ -103,6 +112,9 @@ Status BundleAdjustmentOptions::Check() const {
   if (!(pose_prior_mm > 0) || !(pose_prior_deg > 0) || !(huber_sigmas > 0) || max_iterations <= 0) {
     return InvalidArgument("bundle adjustment: priors, robust scale and iterations must be positive");
   }
+  if (!(mount_prior_mm >= 0 && std::isfinite(mount_prior_mm))) {
+    return InvalidArgument("bundle adjustment: mount_prior_mm must be >= 0 (0: mounts as given)");
+  }
   return Status::Ok();
 }
 
@@ -146,6 +158,37 @@ Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points, std::ve
     poses[static_cast<std::size_t>(v)] = PoseBlock(bv.cam_from_world);
     if (intrinsics.count(bv.intrinsics_group) == 0) intrinsics[bv.intrinsics_group] = bv.camera.params;
   }
+  // One shift per mount index (estimated with mount_prior_mm > 0), and a held zero for views without one.
+  const bool mounts = options.mount_prior_mm > 0;
+  int n_mounts = 0;
+  for (int v = 0; v < nv; ++v) {
+    const BaView& bv = (*views)[static_cast<std::size_t>(v)];
+    if (!mounts || bv.mount < 0) continue;
+    if (bv.mount > 1000 || !bv.mount_axis.allFinite() || std::abs(bv.mount_axis.norm() - 1.0) > 1e-6) {
+      return InvalidArgument("bundle adjustment: view " + std::to_string(v) + " has mount " + std::to_string(bv.mount) +
+                             " with an axis that is not a unit vector (or a mount index over 1000)");
+    }
+    n_mounts = std::max(n_mounts, bv.mount + 1);
+  }
+  std::vector<Vec3d> mount_axis(static_cast<std::size_t>(n_mounts), Vec3d::Zero());
+  for (int v = 0; v < nv; ++v) {
+    const BaView& bv = (*views)[static_cast<std::size_t>(v)];
+    if (!mounts || bv.mount < 0) continue;
+    Vec3d& axis = mount_axis[static_cast<std::size_t>(bv.mount)];
+    if (axis.isZero()) {
+      axis = bv.mount_axis;
+    } else if ((axis - bv.mount_axis).norm() > 1e-6) {
+      return InvalidArgument("bundle adjustment: the views of mount " + std::to_string(bv.mount) +
+                             " give it different axes");
+    }
+  }
+  std::vector<double> shift(static_cast<std::size_t>(n_mounts) + 1, 0.0);  // the last one: no mount, held
+  auto shift_of = [&](const BaView& bv) -> double* {
+    return mounts && bv.mount >= 0 ? &shift[static_cast<std::size_t>(bv.mount)] : &shift.back();
+  };
+  auto axis_of = [&](const BaView& bv) -> Vec3d {
+    return mounts && bv.mount >= 0 ? mount_axis[static_cast<std::size_t>(bv.mount)] : Vec3d::Zero();
+  };
   Problem problem;
   std::vector<std::array<double, 3>> xyz(static_cast<std::size_t>(np));
   for (int i = 0; i < np; ++i) {
@@ -161,26 +204,34 @@ Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points, std::ve
     problem.AddParameterBlock(k.data(), kCameraParamCount);
     problem.SetConstant(k.data(), !options.refine_intrinsics);
   }
+  for (std::size_t m = 0; m < shift.size(); ++m) {
+    problem.AddParameterBlock(&shift[m], 1);
+    problem.SetConstant(&shift[m], m + 1 == shift.size() || mount_axis[m].isZero());
+  }
   const Loss loss{LossKind::kHuber, options.huber_sigmas};
   double initial_sq = 0;
   for (const BaPointObservation& o : obs) {
     const BaView& v = (*views)[static_cast<std::size_t>(o.view)];
     const double e = ReprojectionError((*points)[static_cast<std::size_t>(o.point)], v, o.pixel);
     initial_sq += e * e;
-    auto cost = std::make_unique<ceres::AutoDiffCostFunction<PointReprojection, 2, 3, 6, kCameraParamCount>>(
-        new PointReprojection{o.pixel, 1.0 / o.sigma_px});
+    auto cost = std::make_unique<ceres::AutoDiffCostFunction<PointReprojection, 2, 3, 6, kCameraParamCount, 1>>(
+        new PointReprojection{o.pixel, 1.0 / o.sigma_px, axis_of(v)});
     problem.AddResidual(std::make_shared<CeresResidual>(std::move(cost)),
-                        {xyz[static_cast<std::size_t>(o.point)].data(), poses[static_cast<std::size_t>(o.view)].data(),
-                         intrinsics[v.intrinsics_group].data()},
+                        {xyz[static_cast<std::size_t>(o.point)].data(),
+                         poses[static_cast<std::size_t>(o.view)].data(),
+                         intrinsics[v.intrinsics_group].data(),
+                         shift_of(v)},
                         loss);
   }
   for (const BaLineObservation& o : line_obs) {
     const BaView& v = (*views)[static_cast<std::size_t>(o.view)];
-    auto cost = std::make_unique<ceres::AutoDiffCostFunction<PointOnLine, 1, 3, 6, kCameraParamCount>>(
-        new PointOnLine{o.line, 1.0 / o.sigma_px});
+    auto cost = std::make_unique<ceres::AutoDiffCostFunction<PointOnLine, 1, 3, 6, kCameraParamCount, 1>>(
+        new PointOnLine{o.line, 1.0 / o.sigma_px, axis_of(v)});
     problem.AddResidual(std::make_shared<CeresResidual>(std::move(cost)),
-                        {xyz[static_cast<std::size_t>(o.point)].data(), poses[static_cast<std::size_t>(o.view)].data(),
-                         intrinsics[v.intrinsics_group].data()},
+                        {xyz[static_cast<std::size_t>(o.point)].data(),
+                         poses[static_cast<std::size_t>(o.view)].data(),
+                         intrinsics[v.intrinsics_group].data(),
+                         shift_of(v)},
                         loss);
   }
   if (options.refine_poses) {
@@ -189,6 +240,14 @@ Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points, std::ve
       auto cost = std::make_unique<ceres::AutoDiffCostFunction<BlockPrior, 6, 6>>(
           new BlockPrior{{pose.begin(), pose.end()}, {rs, rs, rs, ts, ts, ts}});
       problem.AddResidual(std::make_shared<CeresResidual>(std::move(cost)), {pose.data()});
+    }
+  }
+  if (mounts) {
+    for (int m = 0; m < n_mounts; ++m) {
+      if (mount_axis[static_cast<std::size_t>(m)].isZero()) continue;  // no view has this index
+      auto cost = std::make_unique<ceres::AutoDiffCostFunction<BlockPrior, 1, 1>>(
+          new BlockPrior{{0.0}, {1.0 / options.mount_prior_mm}});
+      problem.AddResidual(std::make_shared<CeresResidual>(std::move(cost)), {&shift[static_cast<std::size_t>(m)]});
     }
   }
   if (options.refine_intrinsics) {
@@ -220,8 +279,12 @@ Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points, std::ve
   for (int v = 0; v < nv; ++v) {
     BaView& bv = (*views)[static_cast<std::size_t>(v)];
     bv.cam_from_world = PoseFromBlock(poses[static_cast<std::size_t>(v)]);
+    // The mount's shift s moves the camera by s * axis: x_cam = R (x - s axis) + t.
+    const double s_mm = *shift_of(bv);
+    bv.cam_from_world.translation -= bv.cam_from_world.rotation * (s_mm * axis_of(bv));
     bv.camera.params = intrinsics[bv.intrinsics_group];
   }
+  if (mounts) summary.mount_shift_mm.assign(shift.begin(), shift.end() - 1);
   std::vector<double> sum2(static_cast<std::size_t>(np), 0.0);
   std::vector<int> count(static_cast<std::size_t>(np), 0);
   double final_sq = 0;

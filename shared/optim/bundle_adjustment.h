@@ -18,6 +18,12 @@ struct BaView {
   CameraModel camera;       // intrinsics with distortion
   Rigid3d cam_from_world;
   int intrinsics_group = 0; // views sharing a physical camera share intrinsics when those are refined
+  // Views taken from one placement of a mount (both cameras of a head at one rail stop) share that
+  // placement's error: with BundleAdjustmentOptions::mount_prior_mm > 0, each mount >= 0 gets one
+  // unknown shift along `mount_axis` (world frame, unit length; the rail's direction), the same for all
+  // of its views, with that prior. -1: the view's pose is as given.
+  int mount = -1;
+  Vec3d mount_axis = Vec3d::Zero();
 };
 
 struct BaPointObservation {
@@ -38,6 +44,8 @@ struct BundleAdjustmentOptions {
   bool refine_poses = false;       // each pose then gets a prior (the calibrated chain is known to within these)
   double pose_prior_mm = 0.5;
   double pose_prior_deg = 0.05;
+  // > 0: the mounts' shifts (BaView::mount) are estimated, each with this prior (the rail's repeatability).
+  double mount_prior_mm = 0;
   bool refine_intrinsics = false;  // per intrinsics group: fx, fy, cx, cy, k1, k2 (prior 1% / 2 px / 0.05)
   double huber_sigmas = 3.0;       // robust loss: quadratic up to this many sigmas
   int max_iterations = 50;
@@ -48,12 +56,14 @@ struct BundleAdjustmentSummary {
   double initial_rms_px = 0;  // point reprojection RMS before
   double final_rms_px = 0;    // and after
   std::vector<double> point_rms_px;  // per point, after
+  std::vector<double> mount_shift_mm;  // per mount index (0 for an index no view uses), when estimated
   int iterations = 0;
   bool converged = false;
   std::string message;
 };
 
-// Refines `points` (and the views when asked) in place. InvalidArgument for indices out of range,
+// Refines `points` (and the views when asked: poses, intrinsics, mount shifts folded into cam_from_world)
+// in place. InvalidArgument for indices out of range,
 // non-finite input or a point behind a camera that observes it.
 Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points, std::vector<BaView>* views,
                                              const std::vector<BaPointObservation>& point_observations,

@@ -11,11 +11,12 @@
 //
 // Usage: scan_study [--calibration DIR | --oracle] [--scenes 10] [--seed 1] [--stations K] [--span DEG] [--object NAME]
 //                   [--elevation DEG] [--distance MM] [--flat-band] [--junction-refit DEG] [--refine-poses]
-//                   [--rail-repeatability MM] [--json FILE] [--out DIR]
+//                   [--no-rail-stops] [--rail-repeatability MM] [--json FILE] [--out DIR]
 // --flat-band and --junction-refit DEG turn on the front end's opt-in fits (empl.photometric_flat_band,
 // empl.junction_refit_angle_deg), --refine-poses the bundle adjustment's view poses (within their priors),
-// to measure what they change in the scans; --rail-repeatability MM sets the twin's rail (0.1 mm std by
-// default; 0 lands exactly where the encoder says), to tell the rail's share of the errors.
+// to measure what they change in the scans; --no-rail-stops holds each station's rail stop at its
+// reading (the adjustment estimates them by default); --rail-repeatability MM sets the twin's rail
+// (0.1 mm std by default; 0 lands exactly where the encoder says), to tell the rail's share of the errors.
 // --out DIR keeps each scene's run folder (images, regions, overlays, model) in DIR/OBJECT_SCENE.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -50,7 +51,7 @@ int Main(int argc, char** argv) {
   int scenes = 10, stations = 0;  // 0: the scan's default stations
   double span_deg = 0;             // > 0: the stations spread over +-span_deg
   double elevation_deg = 0, distance_mm = 0;
-  bool flat_band = false, refine_poses = false;
+  bool flat_band = false, refine_poses = false, rail_stops = true;
   double junction_refit_deg = 0, rail_repeatability_mm = -1;
   unsigned seed = 1;
   for (int i = 1; i < argc; ++i) {
@@ -86,13 +87,15 @@ int Main(int argc, char** argv) {
     else if (a == "--distance") distance_mm = number();
     else if (a == "--flat-band") flat_band = true;
     else if (a == "--refine-poses") refine_poses = true;
+    else if (a == "--no-rail-stops") rail_stops = false;
     else if (a == "--junction-refit") junction_refit_deg = number();
     else if (a == "--rail-repeatability") rail_repeatability_mm = number();
     else {
       fmt::print(stderr,
                  "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--seed S] [--stations K] [--span DEG] "
                  "[--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--flat-band] "
-                 "[--junction-refit DEG] [--refine-poses] [--rail-repeatability MM] [--json FILE] [--out DIR]\n");
+                 "[--junction-refit DEG] [--refine-poses] [--no-rail-stops] [--rail-repeatability MM] [--json FILE] "
+                 "[--out DIR]\n");
       return 2;
     }
   }
@@ -158,6 +161,7 @@ int Main(int argc, char** argv) {
       o.structure.features.empl.photometric_flat_band = flat_band;
       o.structure.features.empl.junction_refit_angle_deg = junction_refit_deg;
       o.structure.bundle_adjustment.refine_poses = refine_poses;
+      if (!rail_stops) o.structure.bundle_adjustment.mount_prior_mm = 0;
       if (stations > 0 || span_deg > 0) {
         // K stations (default: as many as the scan's default) evenly over +-span (default: its span).
         const double span = span_deg > 0 ? span_deg : std::abs(o.azimuths_deg.front());
@@ -270,6 +274,9 @@ int Main(int argc, char** argv) {
              match_all.true_matches, match_all.false_matches, 100.0 * match_all.precision(), 100.0 * match_all.recall(),
              match_all.found_in_both, 100.0 * match_all.recall_of_visible(), match_all.visible_in_both,
              Median(match_all.epipolar_px));
+  fmt::print("epipolar error median with the adjusted views (each station's rail stop estimated): {:.4f} px over {}\n",
+             Median(match_all.epipolar_adjusted_px),
+             match_all.epipolar_adjusted_px.size());
   fmt::print(
       "epipolar error median: pairs of one station (both cameras, one head pose) {:.4f} px over {}, pairs across "
       "stations {:.4f} px over {}\n",

@@ -468,6 +468,11 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
       }
       sv.view.camera = c.cameras[ki].Camera();
       sv.view.cam_from_world = ChainWorldFromCamera(c, k, js->q_rad, rs->position_mm, ps->pan_rad, ps->tilt_rad).Inverse();
+      // Both cameras of a station share where the rail really stopped (within its repeatability).
+      sv.view.mount = static_cast<int>(s);
+      sv.view.mount_axis = (WorldFromBase(c.robot1, 0, c.psi, rs->position_mm + 1.0).translation -
+                            WorldFromBase(c.robot1, 0, c.psi, rs->position_mm).translation)
+                               .normalized();
       sv.view.roi = ObjectRegionMask(sv.view, o);
       if (!o.out_dir.empty()) {
         const fs::path file = fs::path(o.out_dir) / (sv.view.name + ".png");
@@ -517,6 +522,10 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
                "{} tracks split, {} observations rejected",
                model.points.size(), model.edges.size(), object.size(), report.structure.adjustment.initial_rms_px,
                report.structure.adjustment.final_rms_px, cc.pairs_matched, cc.conflicts_split, cc.observations_rejected);
+  if (!report.structure.adjustment.mount_shift_mm.empty()) {
+    spdlog::info("scan: the stations' rail stops, as the adjustment found them: {:.3f} mm from their readings",
+                 fmt::join(report.structure.adjustment.mount_shift_mm, ", "));
+  }
   if (!o.out_dir.empty()) {
     IDI_RETURN_IF_ERROR(WriteFileAtomically((fs::path(o.out_dir) / "model.ply").string(), ModelToPly(model)));
     for (std::size_t v = 0; v < views.size(); ++v) {
@@ -681,6 +690,7 @@ nlohmann::json ScanReportJson(const ScanReport& r) {
                      {"top_z_mm", r.cylinder_top_z}};
   }
   j["reprojection_rms_px"] = {{"before", r.structure.adjustment.initial_rms_px}, {"after", r.structure.adjustment.final_rms_px}};
+  j["rail_stop_shift_mm"] = r.structure.adjustment.mount_shift_mm;  // per station, the adjustment's estimate
   const Vec3d g = r.grasp.world_from_grasp.translation;
   j["grasp"] = {{"centre_mm", {g.x(), g.y(), g.z()}},
                 {"width_mm", r.grasp.width_mm},

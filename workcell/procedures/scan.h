@@ -77,7 +77,12 @@ struct ScanOptions {
   // box (extended down to the table) of the largest group of points joined by edges.
   double object_link_mm = 40;
   double table_tolerance_mm = 5;
-  StructureOptions structure;
+  // The adjustment estimates each station's rail stop (mount_prior_mm: the rail's repeatability, 0.1 mm).
+  StructureOptions structure = [] {
+    StructureOptions so;
+    so.bundle_adjustment.mount_prior_mm = 0.1;
+    return so;
+  }();
   GraspOptions grasp;
   bool pick = true;
   Vec3d place_offset_world = Vec3d(0, 150, 0);  // where to put it down, from where it stood

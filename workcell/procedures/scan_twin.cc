@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <limits>
 #include <map>
+#include <optional>
 #include <set>
 
 #include "shared/camera/pinhole.h"
@@ -197,6 +198,12 @@ CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const 
       const StructureView& vb = r.views[b].view;
       const auto f = FundamentalFromProjections(MakeProjection(va.camera.K(), va.cam_from_world),
                                                 MakeProjection(vb.camera.K(), vb.cam_from_world));
+      const std::vector<Rigid3d>& adjusted = r.structure.adjusted_cam_from_world;
+      std::optional<Mat3d> f_adjusted;
+      if (adjusted.size() == n) {
+        f_adjusted = FundamentalFromProjections(MakeProjection(va.camera.K(), adjusted[a]),
+                                                MakeProjection(vb.camera.K(), adjusted[b]));
+      }
       std::set<int> matched;  // corners matched between the two views
       for (const PointTrack& track : r.structure.correspondences.points) {
         int ia = -1, ib = -1;
@@ -220,6 +227,12 @@ CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const 
                                             r.structure.matched_features[a].points[static_cast<std::size_t>(ia)].xy,
                                             r.structure.matched_features[b].points[static_cast<std::size_t>(ib)].xy);
           score.epipolar_px.push_back(d);
+          if (f_adjusted) {
+            score.epipolar_adjusted_px.push_back(
+                EpipolarDistance(*f_adjusted,
+                                 r.structure.matched_features[a].points[static_cast<std::size_t>(ia)].xy,
+                                 r.structure.matched_features[b].points[static_cast<std::size_t>(ib)].xy));
+          }
           (r.views[a].station == r.views[b].station ? score.epipolar_same_station_px
                                                     : score.epipolar_across_stations_px)
               .push_back(d);
@@ -239,6 +252,8 @@ void CorrespondenceTruth::Add(const CorrespondenceTruth& other) {
   found_in_both += other.found_in_both;
   visible_in_both += other.visible_in_both;
   epipolar_px.insert(epipolar_px.end(), other.epipolar_px.begin(), other.epipolar_px.end());
+  epipolar_adjusted_px.insert(
+      epipolar_adjusted_px.end(), other.epipolar_adjusted_px.begin(), other.epipolar_adjusted_px.end());
   epipolar_same_station_px.insert(
       epipolar_same_station_px.end(), other.epipolar_same_station_px.begin(), other.epipolar_same_station_px.end());
   epipolar_across_stations_px.insert(epipolar_across_stations_px.end(),

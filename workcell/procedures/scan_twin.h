@@ -62,6 +62,9 @@ struct CorrespondenceTruth {
   // The same errors split by whether the pair's views share a station (both cameras of one head pose:
   // no arm, rail or table motion between them) or not.
   std::vector<double> epipolar_same_station_px, epipolar_across_stations_px;
+  // Every matched pair's epipolar error with the views as the bundle adjustment left them (each station's
+  // rail stop estimated).
+  std::vector<double> epipolar_adjusted_px;
   // Every IDI point labelled with exactly one corner: its distance to that corner's image and its own
   // sigma_px (the front end's accuracy on the scan's images; the points of every view, matched or not).
   std::vector<double> point_error_px, point_sigma_px;

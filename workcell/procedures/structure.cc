@@ -144,7 +144,8 @@ Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& v
       const std::vector<double> k(sv.camera.params.begin(), sv.camera.params.end());
       auto it = std::find(groups.begin(), groups.end(), k);
       if (it == groups.end()) it = groups.insert(groups.end(), k);
-      ba_views.push_back({sv.camera, sv.cam_from_world, static_cast<int>(it - groups.begin())});
+      ba_views.push_back(
+          {sv.camera, sv.cam_from_world, static_cast<int>(it - groups.begin()), sv.mount, sv.mount_axis});
     }
     std::vector<optim::BaPointObservation> obs;
     for (std::size_t i = 0; i < out.model.points.size(); ++i) {
@@ -177,7 +178,12 @@ Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& v
       out.model.points[i].xyz = xyz[i];
       out.model.points[i].reprojection_rms_px = out.adjustment.point_rms_px[i];
     }
+    out.adjusted_cam_from_world.clear();
+    for (const optim::BaView& bv : ba_views) out.adjusted_cam_from_world.push_back(bv.cam_from_world);
     out.adjustment_ms = MsSince(t0);
+  }
+  if (out.adjusted_cam_from_world.empty()) {
+    for (const StructureView& sv : views) out.adjusted_cam_from_world.push_back(sv.cam_from_world);
   }
   // Handed over once nothing refers to them any more (cviews and the adjustment's observations do).
   for (AdaptedFeatures& a : adapted) out.matched_features.push_back(std::move(a.features));

@@ -24,6 +24,11 @@ struct StructureView {
   // lines that do not reach into it are left out of the correspondence (e.g. the volume above the
   // rotary table, so the floor's tiles and the table's rim do not compete with the object's corners).
   cv::Mat roi;
+  // Views taken from one placement of a mount (both cameras of the head at one rail stop): with
+  // StructureOptions::bundle_adjustment.mount_prior_mm > 0 the adjustment estimates each mount's shift
+  // along mount_axis (world frame, unit; the rail), which its encoder cannot see. -1: none.
+  int mount = -1;
+  Vec3d mount_axis = Vec3d::Zero();
 };
 
 struct StructureOptions {
@@ -42,6 +47,8 @@ struct StructureResult {
   std::vector<ViewFeatures> matched_features;
   Correspondences correspondences;
   optim::BundleAdjustmentSummary adjustment;
+  // Each view's cam_from_world after the adjustment (its mount's shift included; as given without one).
+  std::vector<Rigid3d> adjusted_cam_from_world;
   double features_ms = 0, correspondence_ms = 0, adjustment_ms = 0, total_ms = 0;
 };
 
