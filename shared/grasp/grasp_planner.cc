@@ -302,8 +302,12 @@ double WallTilt(const std::vector<Vec2d>& below, const std::vector<Vec2d>& above
 
 }  // namespace
 
-Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_mm, const GraspOptions& o,
-                               const std::vector<std::pair<int, int>>& edges) {
+Result<std::vector<GraspPlan>> PlanTopGrasps(const std::vector<Vec3d>& points,
+                                             double table_z_mm,
+                                             const GraspOptions& o,
+                                             const std::vector<std::pair<int, int>>& edges,
+                                             int max_plans) {
+  if (max_plans < 1) return InvalidArgument("grasp planning: max_plans must be at least 1");
   if (!o.Check()) {
     return InvalidArgument("grasp planning: invalid options");
   }
@@ -348,8 +352,7 @@ Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_
   const double dz = std::max(2.0, std::min(6.0, 0.1 * height));
   const Vec2d all_centroid = HullCentroid(all_hull);
 
-  GraspPlan best;
-  bool found = false;
+  std::vector<GraspPlan> plans;
   int considered = 0;
   const double min_wall_mm = o.hand.finger_spacing_mm + 0.5 * o.hand.finger_width_mm;
   for (const double contact_z : heights) {
@@ -394,8 +397,7 @@ Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_
       // at several heights (equal but for rounding) is taken at the default one.
       const double quality = margin / cone - offset / 50.0 - 0.2 * g.width_mm / o.hand.max_aperture_mm -
                              0.05 * std::abs(contact_z - default_z) / height;
-      if (found && quality <= best.quality) continue;
-      found = true;
+      GraspPlan best;
       best.quality = quality;
       best.width_mm = g.width_mm;
       best.spread_rad = g.spread_rad;
@@ -412,16 +414,40 @@ Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_
       const Vec3d y = z.cross(x);
       best.world_from_grasp.rotation << x, y, z;
       best.world_from_grasp.translation = Vec3d(g.centre.x(), g.centre.y(), contact_z);
+      best.world_from_approach = Translation(0.0, 0.0, o.approach_mm) * best.world_from_grasp;
+      best.world_from_lift = Translation(0.0, 0.0, o.lift_mm) * best.world_from_grasp;
+      plans.push_back(best);
     }
   }
-  if (!found) {
+  if (plans.empty()) {
     return NotFound("grasp planning: no grasp fits the hand with friction " + std::to_string(o.friction) + " (" +
                     std::to_string(considered) + " candidates considered)");
   }
-  best.candidates_considered = considered;
-  best.world_from_approach = Translation(0.0, 0.0, o.approach_mm) * best.world_from_grasp;
-  best.world_from_lift = Translation(0.0, 0.0, o.lift_mm) * best.world_from_grasp;
-  return best;
+  // Best first (ties keep the order found: the default contact height first); the same grasp found at
+  // several heights or from several hull edges (within 2 mm and 2 deg) is listed once.
+  std::stable_sort(
+      plans.begin(), plans.end(), [](const GraspPlan& a, const GraspPlan& b) { return a.quality > b.quality; });
+  std::vector<GraspPlan> distinct;
+  for (const GraspPlan& p : plans) {
+    const bool seen = std::any_of(distinct.begin(), distinct.end(), [&](const GraspPlan& d) {
+      const Vec3d dx = p.world_from_grasp.rotation.col(0), ex = d.world_from_grasp.rotation.col(0);
+      return (p.world_from_grasp.translation - d.world_from_grasp.translation).norm() < 2.0 &&
+             dx.dot(ex) > std::cos(2.0 * kPi / 180.0) && std::abs(p.spread_rad - d.spread_rad) < 1e-6;
+    });
+    if (seen) continue;
+    distinct.push_back(p);
+    distinct.back().candidates_considered = considered;
+    if (static_cast<int>(distinct.size()) >= max_plans) break;
+  }
+  return distinct;
+}
+
+Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points,
+                               double table_z_mm,
+                               const GraspOptions& o,
+                               const std::vector<std::pair<int, int>>& edges) {
+  IDI_ASSIGN_OR_RETURN(std::vector<GraspPlan> plans, PlanTopGrasps(points, table_z_mm, o, edges, 1));
+  return plans.front();
 }
 
 }  // namespace idi

@@ -70,6 +70,15 @@ struct GraspPlan {
 Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_mm, const GraspOptions& options = {},
                                const std::vector<std::pair<int, int>>& edges = {});
 
+// The feasible grasps, best first, at most max_plans of them, each distinct (not the same grasp found
+// at another height or from another hull edge): for a robot that cannot reach the best one. The same
+// errors as PlanTopGrasp; InvalidArgument for max_plans < 1.
+Result<std::vector<GraspPlan>> PlanTopGrasps(const std::vector<Vec3d>& points,
+                                             double table_z_mm,
+                                             const GraspOptions& options,
+                                             const std::vector<std::pair<int, int>>& edges,
+                                             int max_plans);
+
 // The convex hull (counter-clockwise) of 2D points; exposed for tests and the twin's contact check.
 std::vector<Vec2d> ConvexHull2d(std::vector<Vec2d> points);
 

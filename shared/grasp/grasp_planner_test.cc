@@ -147,6 +147,39 @@ TEST(GraspPlannerTest, BracketWhoseLegWasSeenFromOneSideIsGraspedAcrossTheLeg) {
   EXPECT_NEAR(plan->thumb_contact.z(), 76.7 - 25.0, 0.1);
 }
 
+// The alternatives for an arm that cannot reach the best grasp: best first, the first one PlanTopGrasp's,
+// no grasp twice. On the box the two-on-one grasp across its 80 mm side has two orientations (thumb on
+// either face) of equal quality, then come worse ones (across the 160 mm side, off-centre).
+TEST(GraspPlannerTest, AlternativesComeBestFirstAndDistinct) {
+  const auto box = BoxPoints(Vec3d(500, 200, 0), Vec3d(160, 80, 60), DegToRad(30.0));
+  const auto best = PlanTopGrasp(box, 0.0);
+  const auto plans = PlanTopGrasps(box, 0.0, {}, {}, 6);
+  ASSERT_TRUE(best.ok() && plans.ok());
+  ASSERT_GE(plans->size(), 3u);
+  EXPECT_LE(plans->size(), 6u);
+  EXPECT_TRUE(plans->front().world_from_grasp.translation.isApprox(best->world_from_grasp.translation));
+  EXPECT_TRUE(plans->front().world_from_grasp.rotation.isApprox(best->world_from_grasp.rotation));
+  EXPECT_DOUBLE_EQ(plans->front().quality, best->quality);
+  int across_narrow_side = 0;
+  for (std::size_t i = 0; i < plans->size(); ++i) {
+    const GraspPlan& p = (*plans)[i];
+    if (i > 0) {
+      EXPECT_LE(p.quality, (*plans)[i - 1].quality) << "plan " << i;
+    }
+    across_narrow_side += std::abs(p.width_mm - 80.0) < 1e-6 && p.centroid_offset_mm < 1e-6 ? 1 : 0;
+    for (std::size_t j = 0; j < i; ++j) {
+      const GraspPlan& q = (*plans)[j];
+      const bool same = (p.world_from_grasp.translation - q.world_from_grasp.translation).norm() < 2.0 &&
+                        p.world_from_grasp.rotation.col(0).dot(q.world_from_grasp.rotation.col(0)) > 0.999 &&
+                        p.spread_rad == q.spread_rad;
+      EXPECT_FALSE(same) << "plans " << j << " and " << i << " are one grasp";
+    }
+  }
+  EXPECT_GE(across_narrow_side, 2) << "both orientations of the best grasp";
+  EXPECT_EQ(PlanTopGrasps(box, 0.0, {}, {}, 1)->size(), 1u);
+  EXPECT_EQ(PlanTopGrasps(box, 0.0, {}, {}, 0).status().code(), StatusCode::kInvalidArgument);
+}
+
 TEST(GraspPlannerTest, BadInput) {
   EXPECT_EQ(PlanTopGrasp({}, 0.0).status().code(), StatusCode::kInvalidArgument);
   auto pts = BoxPoints(Vec3d::Zero(), Vec3d(80, 60, 50), 0);

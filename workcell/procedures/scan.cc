@@ -266,6 +266,9 @@ Status ScanOptions::Check() const {
   if (!(station_step_deg > 0 && station_step_deg <= 90) || station_retries < 0) {
     return InvalidArgument("scan: station_step_deg must be in (0, 90] and station_retries >= 0");
   }
+  if (grasp_alternatives < 1 || grasp_alternatives > 100) {
+    return InvalidArgument("scan: grasp_alternatives must be 1 to 100");
+  }
   if (!(object_link_mm >= 0) || !std::isfinite(object_link_mm)) {
     return InvalidArgument("scan: object_link_mm must be a finite distance >= 0");
   }
@@ -571,9 +574,9 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
     if (ia >= 0 && ib >= 0) object_edges.emplace_back(ia, ib);
   }
   if (report.cylinder) object_edges.clear();
-  auto plan = PlanTopGrasp(object, o.table_centre_world.z(), o.grasp, object_edges);
-  if (!plan.ok()) return fail(plan.status(), "grasp planning");
-  report.grasp = *plan;
+  auto plans = PlanTopGrasps(object, o.table_centre_world.z(), o.grasp, object_edges, o.grasp_alternatives);
+  if (!plans.ok()) return fail(plans.status(), "grasp planning");
+  report.grasp = plans->front();
   if (!o.pick) return report;
 
   const double t2 = Seconds();
@@ -581,46 +584,66 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
   Progress(o, 0.7, "picking");
   PickReport& pick = report.pick;
   pick.attempted = true;
-  // The palm above the contacts: the thumb's pad meets its face at the plan's half width.
-  double reading = 0, depth = 0;
-  const double half = 0.5 * report.grasp.width_mm;
-  if (!BarrettTipOnFace(c.hand, 2, report.grasp.spread_rad, half, &reading, &depth)) {
-    return fail(NotFound(fmt::format("the hand cannot close on {:.1f} mm", report.grasp.width_mm)), "grasp geometry");
-  }
-  const Rigid3d palm_from_grasp_at = Translation(0.0, 0.0, depth);  // grasp z points down, out of the palm
-  const Rigid3d world_from_palm_grasp = report.grasp.world_from_grasp * palm_from_grasp_at.Inverse();
-  const Rigid3d world_from_palm_approach = report.grasp.world_from_approach * palm_from_grasp_at.Inverse();
-  const Rigid3d world_from_palm_lift = report.grasp.world_from_lift * palm_from_grasp_at.Inverse();
   const Rigid3d place = Translation(o.place_offset_world);
-  const std::vector<Rigid3d> palms = {world_from_palm_approach, world_from_palm_grasp, world_from_palm_lift,
-                                      place * world_from_palm_lift, place * world_from_palm_grasp * Translation(0.0, 0.0, -2.0),
-                                      place * world_from_palm_approach};
   const std::vector<Joints> fallbacks = {JointsFromDeg({180, -40, 120, 0, 10, 0}), JointsFromDeg({150, -30, 110, 0, 20, 0}),
                                          JointsFromDeg({-150, -30, 110, 0, 20, 0})};
   std::vector<Joints> qs;
   Status last = NotFound("no rail position tried");
-  for (const double rail2 : o.rail2_candidates_mm) {
-    if (rail2 < 0 || rail2 > o.rail2_max_mm) continue;
-    const Rigid3d base_from_world = WorldFromBase(c.robot2, 1, c.psi, rail2).Inverse();
-    std::vector<Joints> sol;
-    Joints start = fallbacks[0];
-    for (const Rigid3d& palm : palms) {
-      auto q = SolveArm(c.robot2.robot, start, BaseFromFlangeForPalm(base_from_world, palm, c.flange_from_palm), fallbacks);
-      if (!q.ok()) {
-        last = q.status();
+  // The best grasp robot 2 can reach (approach, grasp, lift, carry, put down, retreat) from some rail
+  // position: a grasp planned from the model alone may need a pose out of the arm's reach.
+  for (std::size_t g = 0; g < plans->size() && qs.empty(); ++g) {
+    const GraspPlan& plan = (*plans)[g];
+    // The palm above the contacts: the thumb's pad meets its face at the plan's half width.
+    double reading = 0, depth = 0;
+    if (!BarrettTipOnFace(c.hand, 2, plan.spread_rad, 0.5 * plan.width_mm, &reading, &depth)) {
+      last = NotFound(fmt::format("the hand cannot close on {:.1f} mm", plan.width_mm));
+      continue;
+    }
+    const Rigid3d palm_from_grasp_at = Translation(0.0, 0.0, depth);  // grasp z points down, out of the palm
+    const Rigid3d world_from_palm_grasp = plan.world_from_grasp * palm_from_grasp_at.Inverse();
+    const Rigid3d world_from_palm_approach = plan.world_from_approach * palm_from_grasp_at.Inverse();
+    const Rigid3d world_from_palm_lift = plan.world_from_lift * palm_from_grasp_at.Inverse();
+    const std::vector<Rigid3d> palms = {world_from_palm_approach,
+                                        world_from_palm_grasp,
+                                        world_from_palm_lift,
+                                        place * world_from_palm_lift,
+                                        place * world_from_palm_grasp * Translation(0.0, 0.0, -2.0),
+                                        place * world_from_palm_approach};
+    for (const double rail2 : o.rail2_candidates_mm) {
+      if (rail2 < 0 || rail2 > o.rail2_max_mm) continue;
+      const Rigid3d base_from_world = WorldFromBase(c.robot2, 1, c.psi, rail2).Inverse();
+      std::vector<Joints> sol;
+      Joints start = fallbacks[0];
+      for (const Rigid3d& palm : palms) {
+        auto q = SolveArm(
+            c.robot2.robot, start, BaseFromFlangeForPalm(base_from_world, palm, c.flange_from_palm), fallbacks);
+        if (!q.ok()) {
+          last = q.status();
+          break;
+        }
+        sol.push_back(*q);
+        start = *q;
+      }
+      if (sol.size() == palms.size()) {
+        qs = std::move(sol);
+        pick.rail2_mm = rail2;
+        pick.grasp_rank = static_cast<int>(g);
+        report.grasp = plan;
+        report.base2_from_grasp = base_from_world * plan.world_from_grasp;
+        if (g > 0) {
+          spdlog::info("scan: robot 2 reaches grasp {} of {} (quality {:.3f}; the best, {:.3f}, is out of its reach)",
+                       g + 1,
+                       plans->size(),
+                       plan.quality,
+                       plans->front().quality);
+        }
         break;
       }
-      sol.push_back(*q);
-      start = *q;
-    }
-    if (sol.size() == palms.size()) {
-      qs = std::move(sol);
-      pick.rail2_mm = rail2;
-      report.base2_from_grasp = base_from_world * report.grasp.world_from_grasp;
-      break;
     }
   }
-  if (qs.empty()) return fail(last, "no rail position of robot 2 reaches the grasp");
+  if (qs.empty()) {
+    return fail(last, fmt::format("no rail position of robot 2 reaches any of the {} grasps planned", plans->size()));
+  }
   auto step = [&](const Status& st, const std::string& what) -> Status {
     if (st.ok()) return st;
     return fail(st, what);
@@ -697,9 +720,15 @@ nlohmann::json ScanReportJson(const ScanReport& r) {
                 {"spread_deg", RadToDeg(r.grasp.spread_rad)},
                 {"friction_margin_deg", RadToDeg(r.grasp.friction_margin_rad)},
                 {"quality", r.grasp.quality}};
-  j["pick"] = {{"attempted", r.pick.attempted}, {"grasped", r.pick.grasped},   {"lifted", r.pick.lifted},
-               {"placed", r.pick.placed},       {"rail2_mm", r.pick.rail2_mm}, {"outcome", r.pick.outcome},
-               {"finger_deg", {RadToDeg(r.pick.finger_rad[0]), RadToDeg(r.pick.finger_rad[1]), RadToDeg(r.pick.finger_rad[2])}}};
+  j["pick"] = {
+      {"attempted", r.pick.attempted},
+      {"grasped", r.pick.grasped},
+      {"lifted", r.pick.lifted},
+      {"placed", r.pick.placed},
+      {"rail2_mm", r.pick.rail2_mm},
+      {"grasp_rank", r.pick.grasp_rank},
+      {"outcome", r.pick.outcome},
+      {"finger_deg", {RadToDeg(r.pick.finger_rad[0]), RadToDeg(r.pick.finger_rad[1]), RadToDeg(r.pick.finger_rad[2])}}};
   j["seconds"] = {{"acquisition", r.acquisition_s}, {"reconstruction", r.reconstruction_s}, {"pick", r.pick_s}};
   j["timing_ms"] = {{"features", r.structure.features_ms}, {"correspondence", r.structure.correspondence_ms},
                     {"adjustment", r.structure.adjustment_ms}, {"total", r.structure.total_ms}};

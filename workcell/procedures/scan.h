@@ -84,6 +84,7 @@ struct ScanOptions {
     return so;
   }();
   GraspOptions grasp;
+  int grasp_alternatives = 8;  // grasps planned, best first; robot 2 takes the best it can reach
   bool pick = true;
   Vec3d place_offset_world = Vec3d(0, 150, 0);  // where to put it down, from where it stood
   hal::MoveOptions move;
@@ -108,6 +109,7 @@ struct PickReport {
   bool lifted = false;   // still stalled after the lift
   bool placed = false;   // opened at the place position and retreated
   double rail2_mm = 0;
+  int grasp_rank = 0;  // which of the planned grasps robot 2 took (0: the best; more when it was out of reach)
   std::array<double, 3> finger_rad{};
   std::string outcome;
 };

@@ -109,6 +109,28 @@ TEST(ScanTest, CorrespondenceOfBracketScenesIsPrecise) {
   EXPECT_LT(point_error[point_error.size() / 2], 0.1) << "median error of the labelled IDI points, px";
 }
 
+// In this scene (seed 1, prism 26) robot 2 reaches none of the poses of the best grasp from any rail
+// position (its IK is 171 mm off); with only that grasp the scan failed. It must take the best one it
+// can reach and pick the prism.
+TEST(ScanTest, RobotTwoTakesTheBestGraspItCanReach) {
+  ScanTwinOptions to;
+  to.seed = 1;
+  to.kind = sim::ObjectKind::kTriangularPrism;
+  to.scene = 26;
+  ScanTwin twin(to);
+  ScanDevices d = twin.Devices();
+  ScanOptions o = twin.SetupOptions();
+  auto r = ScanAndPick(d, twin.TrueCalibration(), o);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_GT(r->pick.grasp_rank, 0) << "the best grasp was reachable after all: this scene no longer tests the fallback";
+  const ScanTruth t = twin.Evaluate(*r, o);
+  EXPECT_TRUE(t.held && t.placed) << t.grasp_reason << "; " << r->pick.outcome;
+  o.grasp_alternatives = 1;
+  ScanTwin again(to);
+  ScanDevices d2 = again.Devices();
+  EXPECT_FALSE(ScanAndPick(d2, again.TrueCalibration(), o).ok()) << "with the best grasp alone robot 2 cannot pick it";
+}
+
 // A cylinder has no corners: it is fitted from its silhouettes (vertical tangent planes) and picked.
 TEST(ScanTest, CylinderIsFittedFromItsSilhouettesAndPicked) {
   ScanTwin twin(Twin(sim::ObjectKind::kCylinder, 1));
