@@ -160,7 +160,7 @@ Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points, std::ve
   }
   // One shift per mount index (estimated with mount_prior_mm > 0), and a held zero for views without one.
   const bool mounts = options.mount_prior_mm > 0;
-  int n_mounts = 0;
+  std::vector<Vec3d> mount_axis;  // per mount index; zero for an index no view uses
   for (int v = 0; v < nv; ++v) {
     const BaView& bv = (*views)[static_cast<std::size_t>(v)];
     if (!mounts || bv.mount < 0) continue;
@@ -168,12 +168,9 @@ Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points, std::ve
       return InvalidArgument("bundle adjustment: view " + std::to_string(v) + " has mount " + std::to_string(bv.mount) +
                              " with an axis that is not a unit vector (or a mount index over 1000)");
     }
-    n_mounts = std::max(n_mounts, bv.mount + 1);
-  }
-  std::vector<Vec3d> mount_axis(static_cast<std::size_t>(n_mounts), Vec3d::Zero());
-  for (int v = 0; v < nv; ++v) {
-    const BaView& bv = (*views)[static_cast<std::size_t>(v)];
-    if (!mounts || bv.mount < 0) continue;
+    if (static_cast<std::size_t>(bv.mount) >= mount_axis.size()) {
+      mount_axis.resize(static_cast<std::size_t>(bv.mount) + 1, Vec3d::Zero());
+    }
     Vec3d& axis = mount_axis[static_cast<std::size_t>(bv.mount)];
     if (axis.isZero()) {
       axis = bv.mount_axis;
@@ -182,7 +179,8 @@ Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points, std::ve
                              " give it different axes");
     }
   }
-  std::vector<double> shift(static_cast<std::size_t>(n_mounts) + 1, 0.0);  // the last one: no mount, held
+  const int n_mounts = static_cast<int>(mount_axis.size());
+  std::vector<double> shift(mount_axis.size() + 1, 0.0);  // the last one: no mount, held
   auto shift_of = [&](const BaView& bv) -> double* {
     return mounts && bv.mount >= 0 ? &shift[static_cast<std::size_t>(bv.mount)] : &shift.back();
   };

@@ -222,17 +222,12 @@ CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const 
         } else {
           ++score.false_matches;
         }
+        const Vec2d& xa = r.structure.matched_features[a].points[static_cast<std::size_t>(ia)].xy;
+        const Vec2d& xb = r.structure.matched_features[b].points[static_cast<std::size_t>(ib)].xy;
         if (f) {
-          const double d = EpipolarDistance(*f,
-                                            r.structure.matched_features[a].points[static_cast<std::size_t>(ia)].xy,
-                                            r.structure.matched_features[b].points[static_cast<std::size_t>(ib)].xy);
+          const double d = EpipolarDistance(*f, xa, xb);
           score.epipolar_px.push_back(d);
-          if (f_adjusted) {
-            score.epipolar_adjusted_px.push_back(
-                EpipolarDistance(*f_adjusted,
-                                 r.structure.matched_features[a].points[static_cast<std::size_t>(ia)].xy,
-                                 r.structure.matched_features[b].points[static_cast<std::size_t>(ib)].xy));
-          }
+          if (f_adjusted) score.epipolar_adjusted_px.push_back(EpipolarDistance(*f_adjusted, xa, xb));
           (r.views[a].station == r.views[b].station ? score.epipolar_same_station_px
                                                     : score.epipolar_across_stations_px)
               .push_back(d);
@@ -251,16 +246,15 @@ void CorrespondenceTruth::Add(const CorrespondenceTruth& other) {
   corners_matched += other.corners_matched;
   found_in_both += other.found_in_both;
   visible_in_both += other.visible_in_both;
-  epipolar_px.insert(epipolar_px.end(), other.epipolar_px.begin(), other.epipolar_px.end());
-  epipolar_adjusted_px.insert(
-      epipolar_adjusted_px.end(), other.epipolar_adjusted_px.begin(), other.epipolar_adjusted_px.end());
-  epipolar_same_station_px.insert(
-      epipolar_same_station_px.end(), other.epipolar_same_station_px.begin(), other.epipolar_same_station_px.end());
-  epipolar_across_stations_px.insert(epipolar_across_stations_px.end(),
-                                     other.epipolar_across_stations_px.begin(),
-                                     other.epipolar_across_stations_px.end());
-  point_error_px.insert(point_error_px.end(), other.point_error_px.begin(), other.point_error_px.end());
-  point_sigma_px.insert(point_sigma_px.end(), other.point_sigma_px.begin(), other.point_sigma_px.end());
+  auto append = [](std::vector<double>& to, const std::vector<double>& from) {
+    to.insert(to.end(), from.begin(), from.end());
+  };
+  append(epipolar_px, other.epipolar_px);
+  append(epipolar_adjusted_px, other.epipolar_adjusted_px);
+  append(epipolar_same_station_px, other.epipolar_same_station_px);
+  append(epipolar_across_stations_px, other.epipolar_across_stations_px);
+  append(point_error_px, other.point_error_px);
+  append(point_sigma_px, other.point_sigma_px);
   scored = scored || other.scored;
 }
 
