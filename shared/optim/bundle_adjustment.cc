@@ -72,6 +72,17 @@ struct PointOnLine {
   }
 };
 
+// A point on a plane of known normal and estimated offset: r = (n . x - offset) / sigma.
+struct PointOnPlane {
+  Vec3d normal;
+  double inv_sigma;
+  template <typename T>
+  bool operator()(const T* point, const T* offset, T* r) const {
+    r[0] = (T(normal.x()) * point[0] + T(normal.y()) * point[1] + T(normal.z()) * point[2] - offset[0]) * T(inv_sigma);
+    return true;
+  }
+};
+
 // A Gaussian prior keeping a block near its start: r = (x - x0) / sigma, per component.
 struct BlockPrior {
   std::vector<double> x0, inv_sigma;
@@ -118,10 +129,12 @@ Status BundleAdjustmentOptions::Check() const {
   return Status::Ok();
 }
 
-Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points, std::vector<BaView>* views,
+Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points,
+                                             std::vector<BaView>* views,
                                              const std::vector<BaPointObservation>& obs,
                                              const std::vector<BaLineObservation>& line_obs,
-                                             const BundleAdjustmentOptions& options) {
+                                             const BundleAdjustmentOptions& options,
+                                             const std::vector<BaPlane>& planes) {
   IDI_RETURN_IF_ERROR(options.Check());
   const int np = static_cast<int>(points->size()), nv = static_cast<int>(views->size());
   for (const Vec3d& p : *points) {
@@ -149,6 +162,21 @@ Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points, std::ve
   for (std::size_t k = 0; k < line_obs.size(); ++k) {
     IDI_RETURN_IF_ERROR(check_index(line_obs[k].point, line_obs[k].view, "line observation", k));
     if (!(line_obs[k].sigma_px > 0)) return InvalidArgument("bundle adjustment: line observation with sigma <= 0");
+  }
+
+  for (std::size_t k = 0; k < planes.size(); ++k) {
+    const BaPlane& pl = planes[k];
+    if (!pl.normal.allFinite() || std::abs(pl.normal.norm() - 1.0) > 1e-6 || !std::isfinite(pl.offset) ||
+        !(pl.sigma_mm > 0) || !(pl.offset_prior_mm >= 0 && std::isfinite(pl.offset_prior_mm))) {
+      return InvalidArgument("bundle adjustment: plane " + std::to_string(k) +
+                             " needs a unit normal, a finite offset, sigma_mm > 0 and offset_prior_mm >= 0");
+    }
+    for (const int i : pl.points) {
+      if (i < 0 || i >= np) {
+        return InvalidArgument("bundle adjustment: plane " + std::to_string(k) + " refers to point " +
+                               std::to_string(i) + " (have " + std::to_string(np) + " points)");
+      }
+    }
   }
 
   std::vector<std::array<double, 6>> poses(static_cast<std::size_t>(nv));
@@ -248,6 +276,24 @@ Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points, std::ve
       problem.AddResidual(std::make_shared<CeresResidual>(std::move(cost)), {&shift[static_cast<std::size_t>(m)]});
     }
   }
+  std::vector<double> plane_offset;
+  for (const BaPlane& pl : planes) plane_offset.push_back(pl.offset);
+  for (std::size_t k = 0; k < planes.size(); ++k) {
+    const BaPlane& pl = planes[k];
+    problem.AddParameterBlock(&plane_offset[k], 1);
+    problem.SetConstant(&plane_offset[k], !(pl.offset_prior_mm > 0));
+    if (pl.offset_prior_mm > 0) {
+      auto cost = std::make_unique<ceres::AutoDiffCostFunction<BlockPrior, 1, 1>>(
+          new BlockPrior{{pl.offset}, {1.0 / pl.offset_prior_mm}});
+      problem.AddResidual(std::make_shared<CeresResidual>(std::move(cost)), {&plane_offset[k]});
+    }
+    for (const int i : pl.points) {
+      auto cost = std::make_unique<ceres::AutoDiffCostFunction<PointOnPlane, 1, 3, 1>>(
+          new PointOnPlane{pl.normal, 1.0 / pl.sigma_mm});
+      problem.AddResidual(std::make_shared<CeresResidual>(std::move(cost)),
+                          {xyz[static_cast<std::size_t>(i)].data(), &plane_offset[k]});
+    }
+  }
   if (options.refine_intrinsics) {
     for (auto& [group, k] : intrinsics) {
       std::vector<double> inv(kCameraParamCount, 1e6);  // p1, p2, k3 held
@@ -283,6 +329,7 @@ Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points, std::ve
     bv.camera.params = intrinsics[bv.intrinsics_group];
   }
   if (mounts) summary.mount_shift_mm.assign(shift.begin(), shift.end() - 1);
+  summary.plane_offset = plane_offset;
   std::vector<double> sum2(static_cast<std::size_t>(np), 0.0);
   std::vector<int> count(static_cast<std::size_t>(np), 0);
   double final_sq = 0;

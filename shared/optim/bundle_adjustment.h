@@ -40,6 +40,19 @@ struct BaLineObservation {
   double sigma_px = 0.05;
 };
 
+// Points known to lie on one plane (the table the object stands on, §8.10's model resting on its
+// support): normal . x = offset, the normal held, the offset estimated with a Gaussian prior about its
+// given value (0: held), each point on it within sigma_mm (the plane's flatness). Points seen from few
+// views at low contrast (an object's bottom corners, where a dark face meets a dark table) then gain
+// the other points' evidence of the plane's height.
+struct BaPlane {
+  Vec3d normal = Vec3d::UnitZ();  // unit
+  double offset = 0;
+  double offset_prior_mm = 0.5;
+  double sigma_mm = 0.05;
+  std::vector<int> points;
+};
+
 struct BundleAdjustmentOptions {
   bool refine_poses = false;       // each pose then gets a prior (the calibrated chain is known to within these)
   double pose_prior_mm = 0.5;
@@ -57,17 +70,21 @@ struct BundleAdjustmentSummary {
   double final_rms_px = 0;    // and after
   std::vector<double> point_rms_px;  // per point, after
   std::vector<double> mount_shift_mm;  // per mount index (0 for an index no view uses), when estimated
+  std::vector<double> plane_offset;    // per plane, estimated
   int iterations = 0;
   bool converged = false;
   std::string message;
 };
 
 // Refines `points` (and the views when asked: poses, intrinsics, mount shifts folded into cam_from_world)
-// in place. InvalidArgument for indices out of range,
-// non-finite input or a point behind a camera that observes it.
-Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points, std::vector<BaView>* views,
+// in place, with `planes` constraining the points they list. InvalidArgument for indices out of range,
+// non-finite input, a plane without a unit normal or positive sigma, or a point behind a camera that
+// observes it.
+Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points,
+                                             std::vector<BaView>* views,
                                              const std::vector<BaPointObservation>& point_observations,
                                              const std::vector<BaLineObservation>& line_observations,
-                                             const BundleAdjustmentOptions& options = {});
+                                             const BundleAdjustmentOptions& options = {},
+                                             const std::vector<BaPlane>& planes = {});
 
 }  // namespace idi::optim

@@ -2,11 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <optional>
 
 #include "shared/reconstruction/triangulation.h"
+#include "shared/util/statistics.h"
 #include "shared/util/units.h"
 
 namespace idi {
@@ -354,13 +356,21 @@ Result<Correspondences> MatchViews(const std::vector<CorrespondenceView>& views,
   }
   const auto raw_tracks = ChainTracks(point_offsets, point_offsets.back(), point_edges, &out.conflicts_split);
   const double min_angle = options.min_ray_angle_deg * kPi / 180.0;
-  auto triangulate = [&](const std::vector<Observation>& obs) {
+  // Weighted: each IDI point by its sigma, widened by the floor; else every point alike.
+  auto triangulate = [&](const std::vector<Observation>& obs, bool weighted = false) {
     std::vector<PointObservation> po;
     for (const Observation& o : obs) {
-      po.push_back({&pinhole[static_cast<std::size_t>(o.view)], views[static_cast<std::size_t>(o.view)].cam_from_world,
-                    views[static_cast<std::size_t>(o.view)].features->points[static_cast<std::size_t>(o.index)].xy});
+      const ViewPoint& q = views[static_cast<std::size_t>(o.view)].features->points[static_cast<std::size_t>(o.index)];
+      po.push_back({&pinhole[static_cast<std::size_t>(o.view)],
+                    views[static_cast<std::size_t>(o.view)].cam_from_world,
+                    q.xy,
+                    weighted ? std::hypot(q.sigma_px, options.track_sigma_floor_px) : 0.0});
     }
     return TriangulatePoint(po, min_angle);
+  };
+  // Degrees of freedom of a point seen in n views: 2n residuals, 3 unknowns.
+  auto consistent = [&](const TriangulatedPoint& tri, std::size_t n) {
+    return tri.chi2 <= ChiSquareQuantile(2.0 * static_cast<double>(n) - 3.0, options.track_outlier_z);
   };
   std::vector<std::vector<char>> taken(views.size());
   for (std::size_t v = 0; v < views.size(); ++v) taken[v].assign(views[v].features->points.size(), 0);
@@ -388,6 +398,31 @@ Result<Correspondences> MatchViews(const std::vector<CorrespondenceView>& views,
       obs.erase(obs.begin() + static_cast<long>(worst));
       ++out.observations_rejected;
       tp.reset();
+    }
+    if (tp && options.track_outlier_z > 0 && obs.size() >= 3) {
+      // With one observation left out the rest must agree; leave out the one that makes them agree best
+      // (the one with the largest residual is often a right one, when a precise wrong one pulls the point).
+      std::optional<TriangulatedPoint> w = triangulate(obs, true);
+      while (w && obs.size() >= 3 && !consistent(*w, obs.size())) {
+        std::size_t drop = obs.size();
+        double best = std::numeric_limits<double>::infinity();
+        std::optional<TriangulatedPoint> best_rest;
+        for (std::size_t k = 0; k < obs.size(); ++k) {
+          std::vector<Observation> rest = obs;
+          rest.erase(rest.begin() + static_cast<long>(k));
+          const auto r = triangulate(rest, true);
+          if (r && r->chi2 < best) {
+            best = r->chi2;
+            drop = k;
+            best_rest = r;
+          }
+        }
+        if (drop == obs.size()) break;
+        obs.erase(obs.begin() + static_cast<long>(drop));
+        ++out.observations_rejected;
+        w = best_rest;
+      }
+      if (w) tp = w;
     }
     if (!tp || obs.size() < 2) continue;
     // A two-view track is weak evidence (any two points near each other's epipolar lines triangulate
@@ -432,10 +467,16 @@ Result<Correspondences> MatchViews(const std::vector<CorrespondenceView>& views,
           ++n_found;
         }
       }
-      if (n_found == 1) {
-        t.observations.push_back({static_cast<int>(v), found});
-        taken[v][static_cast<std::size_t>(found)] = 1;
+      if (n_found != 1) continue;
+      std::vector<Observation> with = t.observations;
+      with.push_back({static_cast<int>(v), found});
+      if (options.track_outlier_z > 0) {
+        // Within tolerance in pixels is not enough: the point must agree with the track's own precision.
+        const auto w = triangulate(with, true);
+        if (!w || !consistent(*w, with.size())) continue;
       }
+      t.observations = std::move(with);
+      taken[v][static_cast<std::size_t>(found)] = 1;
     }
     std::sort(t.observations.begin(), t.observations.end(),
               [](const Observation& x, const Observation& y) { return x.view < y.view; });

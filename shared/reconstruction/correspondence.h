@@ -32,13 +32,22 @@ struct CorrespondenceOptions {
   // off while 99 % of the right ones are within 0.75 px: 0.8 px takes pair precision from 98.3 % to 99.3 %
   // at the same recall.
   double max_track_residual_px = 0.8;
+  // Then, with three or more views, the observations must agree within their own uncertainty: the
+  // track triangulated with each IDI point weighted by its sigma (widened by track_sigma_floor_px, which
+  // covers the views' pose error: the rail's repeatability alone is about 0.1 px) must pass the
+  // chi-square test at track_outlier_z standard deviations, else the observation without which the
+  // rest agree best is dropped, and so on. A precise point 1-2 px off (another edge's extension
+  // crossing near a corner) otherwise outweighs the rest in the adjustment. 0: no test.
+  double track_outlier_z = 3.09;
+  double track_sigma_floor_px = 0.15;
   double min_ray_angle_deg = 1.0;       // views closer than this cannot triangulate a track
   // With three or more views, a pair's point match must be confirmed by this many other views (its
   // triangulated point lands on an IDI point there); 0 keeps every pair match.
   int min_agreeing_views = 1;
   bool Check() const {
     return epipolar_tolerance_px > 0 && segment_margin_px >= 0 && min_support >= 0 && max_reprojection_px > 0 &&
-           max_track_residual_px > 0 && min_ray_angle_deg >= 0 && min_agreeing_views >= 0;
+           max_track_residual_px > 0 && min_ray_angle_deg >= 0 && min_agreeing_views >= 0 && track_outlier_z >= 0 &&
+           track_sigma_floor_px >= 0;
   }
 };
 

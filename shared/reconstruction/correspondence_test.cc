@@ -160,6 +160,52 @@ TEST(CorrespondenceTest, MultiViewTracksTriangulateTheVertices) {
   }
 }
 
+// A point that is precise by its own account but 0.9 px off (another edge's extension crossing near the
+// corner) stays within the track check's pixel tolerance; weighted by its sigma it would pull the
+// point onto its ray. The check by the observations' own sigmas leaves it out of the track.
+TEST(CorrespondenceTest, TrackLeavesOutAPreciseObservationThatDisagrees) {
+  Scene s = MakeScene(21, 6, 2);
+  const auto clean = MatchViews(ViewsOf(s), {});
+  ASSERT_TRUE(clean.ok()) << clean.status().ToString();
+  // The vertex seen in the most views; its observation in the middle of them is made wrong.
+  const PointTrack* longest = &clean->points.front();
+  for (const PointTrack& t : clean->points) {
+    if (t.observations.size() > longest->observations.size()) longest = &t;
+  }
+  ASSERT_GE(longest->observations.size(), 5u);
+  const Observation bad = longest->observations[longest->observations.size() / 2];
+  const int vertex = s.views[static_cast<std::size_t>(bad.view)].point_vertex[static_cast<std::size_t>(bad.index)];
+  ASSERT_GE(vertex, 0);
+  ViewPoint& p = s.views[static_cast<std::size_t>(bad.view)].features.points[static_cast<std::size_t>(bad.index)];
+  p.xy += Vec2d(0.9 * std::cos(0.7), 0.9 * std::sin(0.7));
+  p.sigma_px = 0.02;
+  auto track_of_vertex = [&](const Correspondences& c) -> const PointTrack* {
+    for (const PointTrack& t : c.points) {
+      const Observation& o = t.observations.front();
+      if (s.views[static_cast<std::size_t>(o.view)].point_vertex[static_cast<std::size_t>(o.index)] == vertex)
+        return &t;
+    }
+    return nullptr;
+  };
+  auto holds_bad = [&](const PointTrack& t) {
+    return std::find(t.observations.begin(), t.observations.end(), bad) != t.observations.end();
+  };
+  CorrespondenceOptions off;
+  off.track_outlier_z = 0;
+  const auto without = MatchViews(ViewsOf(s), off);
+  ASSERT_TRUE(without.ok());
+  const PointTrack* kept = track_of_vertex(*without);
+  ASSERT_NE(kept, nullptr);
+  EXPECT_TRUE(holds_bad(*kept)) << "the pixel tolerance alone keeps it (else this test shows nothing)";
+  const auto with = MatchViews(ViewsOf(s), {});
+  ASSERT_TRUE(with.ok());
+  const PointTrack* checked = track_of_vertex(*with);
+  ASSERT_NE(checked, nullptr);
+  EXPECT_FALSE(holds_bad(*checked));
+  EXPECT_GE(checked->observations.size(), longest->observations.size() - 1);
+  EXPECT_LT((checked->xyz - s.wire.vertices[static_cast<std::size_t>(vertex)]).norm(), 0.2);
+}
+
 TEST(CorrespondenceTest, BadInput) {
   const Scene s = MakeScene(5, 2, 1);
   auto views = ViewsOf(s);

@@ -13,10 +13,12 @@ std::optional<TriangulatedPoint> TriangulatePoint(const std::vector<PointObserva
   }
   std::vector<Line3d> rays;
   rays.reserve(observations.size());
+  std::vector<double> weight;
   for (const PointObservation& o : observations) {
-    if (o.camera == nullptr || !o.pixel.allFinite()) {
+    if (o.camera == nullptr || !o.pixel.allFinite() || !(o.sigma_px >= 0)) {
       return std::nullopt;
     }
+    weight.push_back(o.sigma_px > 0 ? 1.0 / o.sigma_px : 1.0);
     const Rigid3d world_from_cam = o.cam_from_world.Inverse();
     rays.push_back({world_from_cam.translation, world_from_cam.RotateVector(PixelToRay(*o.camera, o.pixel))});
   }
@@ -47,13 +49,14 @@ std::optional<TriangulatedPoint> TriangulatePoint(const std::vector<PointObserva
         return false;
       }
       const Vec2d measured = PixelToNormalized(*o.camera, o.pixel);
+      const double w = weight[static_cast<std::size_t>(i)];
       const double fx = o.camera->fx(), fy = o.camera->fy();
-      (*r)(2 * i) = fx * (pc.x() / pc.z() - measured.x());
-      (*r)(2 * i + 1) = fy * (pc.y() / pc.z() - measured.y());
+      (*r)(2 * i) = w * fx * (pc.x() / pc.z() - measured.x());
+      (*r)(2 * i + 1) = w * fy * (pc.y() / pc.z() - measured.y());
       if (jac) {
         Eigen::Matrix<double, 2, 3> d;
         d << fx / pc.z(), 0, -fx * pc.x() / (pc.z() * pc.z()), 0, fy / pc.z(), -fy * pc.y() / (pc.z() * pc.z());
-        jac->block<2, 3>(2 * i, 0) = d * o.cam_from_world.rotation;
+        jac->block<2, 3>(2 * i, 0) = w * d * o.cam_from_world.rotation;
       }
     }
     return true;
@@ -79,7 +82,12 @@ std::optional<TriangulatedPoint> TriangulatePoint(const std::vector<PointObserva
   }
   TriangulatedPoint out;
   out.xyz = x;
-  out.reprojection_rms_px = std::sqrt(r.squaredNorm() / static_cast<double>(observations.size()));
+  out.chi2 = r.squaredNorm();
+  double sum_px2 = 0;
+  for (std::size_t i = 0; i < observations.size(); ++i) {
+    sum_px2 += r.segment<2>(2 * static_cast<Eigen::Index>(i)).squaredNorm() / (weight[i] * weight[i]);
+  }
+  out.reprojection_rms_px = std::sqrt(sum_px2 / static_cast<double>(observations.size()));
   out.min_ray_angle_rad = max_angle;
   return out;
 }

@@ -13,16 +13,18 @@ struct PointObservation {
   const CameraModel* camera = nullptr;
   Rigid3d cam_from_world;
   Vec2d pixel;
+  double sigma_px = 0;  // > 0: the residual is weighted by 1 / sigma; 0: every observation weighs the same
 };
 
 struct TriangulatedPoint {
   Vec3d xyz;
   double reprojection_rms_px = 0;      // over the observations
   double min_ray_angle_rad = 0;        // largest angle between two rays (conditioning)
+  double chi2 = 0;                     // sum of the squared residuals in sigmas (in px^2 when unweighted)
 };
 
 // Least squares over all rays (§8.4): the point closest to the back-projected rays, then refined by
-// Gauss-Newton on the reprojection error (so each view counts in pixels, not millimetres). nullopt
+// Gauss-Newton on the reprojection error (so each view counts in pixels, or in its sigmas). nullopt
 // with fewer than two observations, rays (nearly) parallel, or the point behind a camera.
 std::optional<TriangulatedPoint> TriangulatePoint(const std::vector<PointObservation>& observations,
                                                   double min_angle_rad = 1e-3);

@@ -56,6 +56,33 @@ TEST_F(TriangulationTest, NoisyPixelsGiveSubMillimetreAtOneMetre) {
   EXPECT_LT(std::sqrt(sum2 / n), 0.2);
 }
 
+// With sigmas each view counts by its precision: a precise view's ray is followed, imprecise ones give
+// way, and chi2 is the sum of the squared residuals in sigmas.
+TEST_F(TriangulationTest, WeightsEachViewByItsSigma) {
+  const Vec3d x(30, -20, 80);
+  std::vector<PointObservation> obs;
+  for (std::size_t v = 0; v < poses_.size(); ++v) {
+    const Vec2d exact = *Project(camera_, poses_[v] * x);
+    obs.push_back({&camera_, poses_[v], v == 0 ? exact : Vec2d(exact + Vec2d(1.0, -1.0)), v == 0 ? 0.02 : 1.0});
+  }
+  auto error_in_view0 = [&](const TriangulatedPoint& t) {
+    return (*Project(camera_, poses_[0] * t.xyz) - obs[0].pixel).norm();
+  };
+  const auto weighted = TriangulatePoint(obs);
+  ASSERT_TRUE(weighted.has_value());
+  EXPECT_LT(error_in_view0(*weighted), 0.01);
+  double chi2 = 0;
+  for (const PointObservation& o : obs)
+    chi2 += ((*Project(camera_, o.cam_from_world * weighted->xyz) - o.pixel) / o.sigma_px).squaredNorm();
+  EXPECT_NEAR(weighted->chi2, chi2, 1e-3 * chi2);
+  for (PointObservation& o : obs) o.sigma_px = 0;
+  const auto plain = TriangulatePoint(obs);
+  ASSERT_TRUE(plain.has_value());
+  EXPECT_GT(error_in_view0(*plain), 0.5);
+  obs[1].sigma_px = -1;
+  EXPECT_FALSE(TriangulatePoint(obs).has_value());
+}
+
 TEST_F(TriangulationTest, RefusesDegenerateInput) {
   const Vec3d x(0, 0, 50);
   const PointObservation o{&camera_, poses_[0], *Project(camera_, poses_[0] * x)};

@@ -9,14 +9,20 @@
 // correspondence over every view pair: precision and recall of the IDI point matches against the true
 // corners, and the epipolar error of the matched points.
 //
-// Usage: scan_study [--calibration DIR | --oracle] [--scenes 10] [--seed 1] [--stations K] [--span DEG] [--object NAME]
-//                   [--elevation DEG] [--distance MM] [--flat-band] [--junction-refit DEG] [--refine-poses]
-//                   [--no-rail-stops] [--rail-repeatability MM] [--json FILE] [--out DIR]
+// Usage: scan_study [--calibration DIR | --oracle] [--scenes 10] [--scene 0] [--seed 1] [--stations K]
+//                   [--span DEG] [--object NAME] [--elevation DEG] [--distance MM] [--flat-band]
+//                   [--junction-refit DEG] [--refine-poses]
+//                   [--no-rail-stops] [--no-track-test] [--no-table-support] [--rail-repeatability MM]
+//                   [--json FILE] [--out DIR]
 // --flat-band and --junction-refit DEG turn on the front end's opt-in fits (empl.photometric_flat_band,
 // empl.junction_refit_angle_deg), --refine-poses the bundle adjustment's view poses (within their priors),
 // to measure what they change in the scans; --no-rail-stops holds each station's rail stop at its
-// reading (the adjustment estimates them by default); --rail-repeatability MM sets the twin's rail
-// (0.1 mm std by default; 0 lands exactly where the encoder says), to tell the rail's share of the errors.
+// reading (the adjustment estimates them by default); --no-track-test keeps the observations a track
+// check by their own sigmas would drop (CorrespondenceOptions::track_outlier_z); --no-table-support
+// leaves the points near the table top free (ScanOptions::points_on_table); --rail-repeatability MM sets
+// the twin's rail (0.1 mm std by default; 0 lands exactly where the encoder says), to tell the rail's share
+// of the errors.
+// --scene K starts at scene K (K, K+1, ... K+N-1), to look again at one scene of a longer study.
 // --out DIR keeps each scene's run folder (images, regions, overlays, model) in DIR/OBJECT_SCENE.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -48,10 +54,10 @@ double Median(std::vector<double> v) {
 int Main(int argc, char** argv) {
   std::string cal_dir, json_out, only, out_dir;
   bool oracle = false;
-  int scenes = 10, stations = 0;  // 0: the scan's default stations
+  int scenes = 10, stations = 0, first_scene = 0;  // 0: the scan's default stations
   double span_deg = 0;             // > 0: the stations spread over +-span_deg
   double elevation_deg = 0, distance_mm = 0;
-  bool flat_band = false, refine_poses = false, rail_stops = true;
+  bool flat_band = false, refine_poses = false, rail_stops = true, track_test = true, table_support = true;
   double junction_refit_deg = 0, rail_repeatability_mm = -1;
   unsigned seed = 1;
   for (int i = 1; i < argc; ++i) {
@@ -77,6 +83,7 @@ int Main(int argc, char** argv) {
     if (a == "--calibration") cal_dir = next();
     else if (a == "--oracle") oracle = true;
     else if (a == "--scenes") scenes = static_cast<int>(number());
+    else if (a == "--scene") first_scene = static_cast<int>(number());
     else if (a == "--seed") seed = static_cast<unsigned>(number());
     else if (a == "--stations") stations = static_cast<int>(number());
     else if (a == "--span") span_deg = number();
@@ -88,18 +95,23 @@ int Main(int argc, char** argv) {
     else if (a == "--flat-band") flat_band = true;
     else if (a == "--refine-poses") refine_poses = true;
     else if (a == "--no-rail-stops") rail_stops = false;
+    else if (a == "--no-track-test") track_test = false;
+    else if (a == "--no-table-support") table_support = false;
     else if (a == "--junction-refit") junction_refit_deg = number();
     else if (a == "--rail-repeatability") rail_repeatability_mm = number();
     else {
       fmt::print(stderr,
-                 "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--seed S] [--stations K] [--span DEG] "
+                 "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--scene FIRST] [--seed S] "
+                 "[--stations K] [--span DEG] "
                  "[--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--flat-band] "
-                 "[--junction-refit DEG] [--refine-poses] [--no-rail-stops] [--rail-repeatability MM] [--json FILE] "
+                 "[--junction-refit DEG] [--refine-poses] [--no-rail-stops] [--no-track-test] [--no-table-support] "
+                 "[--rail-repeatability MM] [--json FILE] "
                  "[--out DIR]\n");
       return 2;
     }
   }
-  if (scenes < 1 || stations < 0 || stations > 8 || !(span_deg >= 0 && span_deg <= 120) || (!oracle && cal_dir.empty())) {
+  if (scenes < 1 || first_scene < 0 || stations < 0 || stations > 8 || !(span_deg >= 0 && span_deg <= 120) ||
+      (!oracle && cal_dir.empty())) {
     fmt::print(stderr, "scan_study: give --calibration DIR or --oracle; scenes >= 1; stations 1..8; span 0..120 deg\n");
     return 2;
   }
@@ -145,7 +157,7 @@ int Main(int argc, char** argv) {
     int matched = 0;
     workcell::CorrespondenceTruth match;  // pooled over this object's scenes
     std::vector<double> ms;
-    for (int s = 0; s < scenes; ++s) {
+    for (int s = first_scene; s < first_scene + scenes; ++s) {
       workcell::ScanTwinOptions to;
       to.seed = seed;
       to.kind = kind;
@@ -162,6 +174,8 @@ int Main(int argc, char** argv) {
       o.structure.features.empl.junction_refit_angle_deg = junction_refit_deg;
       o.structure.bundle_adjustment.refine_poses = refine_poses;
       if (!rail_stops) o.structure.bundle_adjustment.mount_prior_mm = 0;
+      if (!track_test) o.structure.correspondence.track_outlier_z = 0;
+      o.points_on_table = table_support;
       if (stations > 0 || span_deg > 0) {
         // K stations (default: as many as the scan's default) evenly over +-span (default: its span).
         const double span = span_deg > 0 ? span_deg : std::abs(o.azimuths_deg.front());
@@ -185,6 +199,19 @@ int Main(int argc, char** argv) {
         ++failed_scans;
         row["error"] = r.status().ToString();
         fmt::print(stderr, "  {} scene {}: {}\n", name, s, r.status().ToString());
+        if (r.status().code() == StatusCode::kNotFound && kind != sim::ObjectKind::kCylinder) {
+          // Whether the object itself has a grasp (the planner on its true corners and edges), or only the
+          // reconstruction lacks what the grasp needs.
+          const sim::CellObject& target = twin.target_at_start();
+          const sim::ObjectWireframe wire = sim::ObjectCorners(target.shape);
+          std::vector<Vec3d> corners;
+          for (const Vec3d& v : wire.vertices) corners.push_back(target.world_from_object * v);
+          const auto truth =
+              PlanTopGrasps(corners, o.table_centre_world.z(), o.grasp, wire.edges, o.grasp_alternatives);
+          row["grasps_on_true_model"] = truth.ok() ? static_cast<int>(truth->size()) : 0;
+          fmt::print(stderr, "    on the true model the planner finds {}\n",
+                     truth.ok() ? fmt::format("{} grasp(s)", truth->size()) : truth.status().ToString());
+        }
         all.push_back(row);
         continue;
       }

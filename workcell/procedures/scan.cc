@@ -279,6 +279,10 @@ Status ScanOptions::Check() const {
   if (!std::isfinite(aim_height_mm) || !(table_tolerance_mm >= 0)) {
     return InvalidArgument("scan: the aim height and the table tolerance must be finite, the tolerance non-negative");
   }
+  if (!(table_height_prior_mm >= 0 && std::isfinite(table_height_prior_mm)) ||
+      !(table_flatness_mm > 0 && std::isfinite(table_flatness_mm))) {
+    return InvalidArgument("scan: the table height prior must be >= 0 and its flatness > 0 (mm)");
+  }
   if (!place_offset_world.allFinite()) return InvalidArgument("scan: the place offset must be finite");
   if (rail2_candidates_mm.empty()) return InvalidArgument("scan: robot 2 needs at least one rail position to try");
   if (!grasp.Check()) return InvalidArgument("scan: invalid grasp options");
@@ -496,7 +500,16 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
   Progress(o, 0.5, fmt::format("reconstructing from {} views", report.views.size()));
   std::vector<StructureView> views;
   for (const ScanView& v : report.views) views.push_back(v.view);
-  auto structure = ReconstructStructure(views, o.structure);
+  StructureOptions structure_options = o.structure;
+  if (o.points_on_table && !structure_options.support) {
+    optim::BaPlane table;
+    table.normal = Vec3d::UnitZ();
+    table.offset = o.table_centre_world.z();
+    table.offset_prior_mm = o.table_height_prior_mm;
+    table.sigma_mm = o.table_flatness_mm;
+    structure_options.support = table;
+  }
+  auto structure = ReconstructStructure(views, structure_options);
   if (!structure.ok()) return fail(structure.status(), "reconstruction");
   report.structure = std::move(*structure);
   const StructureModel& model = report.structure.model;
@@ -525,6 +538,12 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
                "{} tracks split, {} observations rejected",
                model.points.size(), model.edges.size(), object.size(), report.structure.adjustment.initial_rms_px,
                report.structure.adjustment.final_rms_px, cc.pairs_matched, cc.conflicts_split, cc.observations_rejected);
+  if (!report.structure.on_support.empty() && !report.structure.adjustment.plane_offset.empty()) {
+    spdlog::info(
+        "scan: {} point(s) held on the table top; its height as the adjustment found it: {:+.3f} mm from the setup's",
+        report.structure.on_support.size(),
+        report.structure.adjustment.plane_offset.front() - o.table_centre_world.z());
+  }
   if (!report.structure.adjustment.mount_shift_mm.empty()) {
     spdlog::info("scan: the stations' rail stops, as the adjustment found them: {:.3f} mm from their readings",
                  fmt::join(report.structure.adjustment.mount_shift_mm, ", "));
@@ -702,6 +721,10 @@ nlohmann::json ScanReportJson(const ScanReport& r) {
   std::vector<bool> on_object(r.structure.model.points.size(), false);
   for (int i : r.object_points) on_object[static_cast<std::size_t>(i)] = true;
   for (std::size_t i = 0; i < on_object.size(); ++i) j["points"][i]["object"] = static_cast<bool>(on_object[i]);
+  for (const int i : r.structure.on_support) j["points"][static_cast<std::size_t>(i)]["on_table"] = true;
+  if (!r.structure.adjustment.plane_offset.empty()) {
+    j["table_top_z_mm"] = r.structure.adjustment.plane_offset.front();  // the adjustment's estimate
+  }
   j["views"] = nlohmann::json::array();
   for (const ScanView& v : r.views) {
     j["views"].push_back({{"name", v.view.name}, {"station", v.station}, {"azimuth_deg", v.azimuth_deg}, {"rail1_mm", v.rail1_mm},

@@ -83,6 +83,12 @@ struct ScanOptions {
     so.bundle_adjustment.mount_prior_mm = 0.1;
     return so;
   }();
+  // Model points within structure.support_snap_mm of the table top (an object's bottom corners) are held
+  // on it in the adjustment, the table's height estimated within table_height_prior_mm of the setup's
+  // value; the corners where a dark face meets the dark table are the least precise in the images.
+  bool points_on_table = true;
+  double table_height_prior_mm = 0.5;
+  double table_flatness_mm = 0.05;
   GraspOptions grasp;
   int grasp_alternatives = 8;  // grasps planned, best first; robot 2 takes the best it can reach
   bool pick = true;

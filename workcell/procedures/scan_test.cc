@@ -47,6 +47,28 @@ TEST(ScanTest, BoxIsReconstructedPickedAndPlaced) {
   EXPECT_TRUE(t.held) << t.grasp_reason;
   EXPECT_TRUE(t.placed);
   EXPECT_EQ(t.collisions, 0);
+  // The bottom corners found are held on the table top, whose height the adjustment estimates; the twin's
+  // table is where the setup says, and the object stands on it.
+  int bottom_found = 0;
+  for (std::size_t k = 0; k < t.vertex_error_mm.size(); ++k)
+    bottom_found += t.vertex_height_mm[k] < 1.0 && t.vertex_error_mm[k] >= 0;
+  EXPECT_GE(static_cast<int>(r->structure.on_support.size()), bottom_found);
+  ASSERT_EQ(r->structure.adjustment.plane_offset.size(), 1u);
+  EXPECT_NEAR(r->structure.adjustment.plane_offset[0], o.table_centre_world.z(), 0.1);
+  for (const int i : r->structure.on_support) {
+    EXPECT_NEAR(
+        r->structure.model.points[static_cast<std::size_t>(i)].xyz.z(), r->structure.adjustment.plane_offset[0], 0.2);
+  }
+  EXPECT_TRUE(ScanReportJson(*r).contains("table_top_z_mm"));
+  // Without the table the same scan leaves them free, and the adjustment has no plane.
+  ScanTwin again(Twin(sim::ObjectKind::kBox, 0));
+  ScanDevices d2 = again.Devices();
+  o.points_on_table = false;
+  o.out_dir.clear();
+  auto unheld = ScanAndPick(d2, again.TrueCalibration(), o);
+  ASSERT_TRUE(unheld.ok()) << unheld.status().ToString();
+  EXPECT_TRUE(unheld->structure.on_support.empty());
+  EXPECT_TRUE(unheld->structure.adjustment.plane_offset.empty());
 }
 
 // The correspondence against the twin's truth over every view pair (issue 7: precision >= 99 %, recall
@@ -186,6 +208,15 @@ TEST(ScanTest, BadSetUpsAreRejected) {
   EXPECT_EQ(ScanAndPick(d, twin.TrueCalibration(), o).status().code(), StatusCode::kInvalidArgument);
   o = twin.SetupOptions();
   o.azimuths_deg.clear();
+  EXPECT_EQ(ScanAndPick(d, twin.TrueCalibration(), o).status().code(), StatusCode::kInvalidArgument);
+  o = twin.SetupOptions();
+  o.table_flatness_mm = 0;
+  r = ScanAndPick(d, twin.TrueCalibration(), o);
+  EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(r.status().message().find("flatness"), std::string::npos) << r.status().ToString();
+  o = twin.SetupOptions();
+  o.structure.support_snap_mm = -1;
+  o.structure.support = optim::BaPlane{};
   EXPECT_EQ(ScanAndPick(d, twin.TrueCalibration(), o).status().code(), StatusCode::kInvalidArgument);
   // A table 5 m away: no head pose reaches a view of it; the error names the station.
   o = twin.SetupOptions();

@@ -94,6 +94,9 @@ Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& v
       return InvalidArgument(who + ": cam_from_world's rotation is not a rotation (inconsistent projection matrix)");
     }
   }
+  if (options.support && !(options.support_snap_mm >= 0 && std::isfinite(options.support_snap_mm))) {
+    return InvalidArgument("reconstruction: support_snap_mm must be finite and >= 0");
+  }
   StructureResult out;
   std::vector<AdaptedFeatures> adapted;
   auto t0 = std::chrono::steady_clock::now();
@@ -173,7 +176,20 @@ Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& v
         }
       }
     }
-    IDI_ASSIGN_OR_RETURN(out.adjustment, optim::BundleAdjust(&xyz, &ba_views, obs, line_obs, options.bundle_adjustment));
+    std::vector<optim::BaPlane> planes;
+    if (options.support) {
+      optim::BaPlane plane = *options.support;
+      plane.points.clear();
+      for (std::size_t i = 0; i < xyz.size(); ++i) {
+        if (std::abs(plane.normal.dot(xyz[i]) - plane.offset) <= options.support_snap_mm) {
+          plane.points.push_back(static_cast<int>(i));
+        }
+      }
+      out.on_support = plane.points;
+      if (!plane.points.empty()) planes.push_back(std::move(plane));
+    }
+    IDI_ASSIGN_OR_RETURN(out.adjustment,
+                         optim::BundleAdjust(&xyz, &ba_views, obs, line_obs, options.bundle_adjustment, planes));
     for (std::size_t i = 0; i < xyz.size(); ++i) {
       out.model.points[i].xyz = xyz[i];
       out.model.points[i].reprojection_rms_px = out.adjustment.point_rms_px[i];

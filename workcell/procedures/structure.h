@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,10 @@ struct StructureOptions {
   ModelOptions model;
   optim::BundleAdjustmentOptions bundle_adjustment;
   bool adjust = true;
+  // The plane the objects stand on (world frame; its `points` are ignored): the model points that
+  // triangulate within support_snap_mm of it are held on it in the adjustment, its offset estimated.
+  std::optional<optim::BaPlane> support;
+  double support_snap_mm = 2.0;
 };
 
 struct StructureResult {
@@ -47,6 +52,7 @@ struct StructureResult {
   std::vector<ViewFeatures> matched_features;
   Correspondences correspondences;
   optim::BundleAdjustmentSummary adjustment;
+  std::vector<int> on_support;  // model points held on the support plane in the adjustment
   // Each view's cam_from_world after the adjustment (its mount's shift included; as given without one).
   std::vector<Rigid3d> adjusted_cam_from_world;
   double features_ms = 0, correspondence_ms = 0, adjustment_ms = 0, total_ms = 0;
