@@ -84,6 +84,93 @@ struct CylinderFit {
   double radius = 0, top_z = 0;
   int planes = 0;
 };
+// The top rim, a horizontal circle (axis, radius) at top_z, is the outline of the cylinder's top face in
+// every view: its strongest edge (the face is lit from above; the limbs are the dark side against the dark
+// table, and their lines stop short of the rim). The limbs' fit is refined by maximising the image
+// gradient along the projected rim, summed over the views: first the height alone, then all four.
+// Returns the mean gradient along the rim (0 when it falls outside every image).
+// The views' gradient magnitudes (Gaussian sigma 1 px, gray levels per pixel), for RefineOnTopRim.
+std::vector<cv::Mat> GradientMagnitudes(const std::vector<StructureView>& views) {
+  std::vector<cv::Mat> grad;
+  for (const StructureView& v : views) {
+    cv::Mat gray = v.image;
+    if (gray.channels() == 3) cv::cvtColor(v.image, gray, cv::COLOR_BGR2GRAY);
+    cv::Mat f, gx, gy, mag;
+    gray.convertTo(f, CV_32F);
+    cv::GaussianBlur(f, f, cv::Size(0, 0), 1.0);
+    cv::Sobel(f, gx, CV_32F, 1, 0, 3, 0.125);
+    cv::Sobel(f, gy, CV_32F, 0, 1, 3, 0.125);
+    cv::magnitude(gx, gy, mag);
+    grad.push_back(mag);
+  }
+  return grad;
+}
+
+double RefineOnTopRim(const std::vector<StructureView>& views,
+                      const std::vector<cv::Mat>& grad,
+                      const ScanOptions& o,
+                      CylinderFit* fit) {
+  auto sample = [](const cv::Mat& m, const Vec2d& px) {
+    const int x0 = static_cast<int>(std::floor(px.x())), y0 = static_cast<int>(std::floor(px.y()));
+    if (x0 < 0 || y0 < 0 || x0 + 1 >= m.cols || y0 + 1 >= m.rows) return -1.0;
+    const double fx = px.x() - x0, fy = px.y() - y0;
+    return (1 - fy) * ((1 - fx) * m.at<float>(y0, x0) + fx * m.at<float>(y0, x0 + 1)) +
+           fy * ((1 - fx) * m.at<float>(y0 + 1, x0) + fx * m.at<float>(y0 + 1, x0 + 1));
+  };
+  // p: axis x, axis y, radius, top z.
+  auto score = [&](const Eigen::Vector4d& p) {
+    if (!(p[2] > 5)) return 0.0;
+    double sum = 0;
+    int n = 0;
+    for (std::size_t v = 0; v < views.size(); ++v) {
+      for (int k = 0; k < 60; ++k) {
+        const double a = 2 * kPi * k / 60.0;
+        const Vec3d x(p[0] + p[2] * std::cos(a), p[1] + p[2] * std::sin(a), p[3]);
+        const auto px = Project(views[v].camera, views[v].cam_from_world * x);
+        if (!px) continue;
+        const double g = sample(grad[v], *px);
+        if (g < 0) continue;
+        sum += g;
+        ++n;
+      }
+    }
+    return n > 0 ? sum / n : 0.0;
+  };
+  Eigen::Vector4d best(fit->axis.x(), fit->axis.y(), fit->radius, fit->top_z);
+  double best_score = score(best);
+  for (double z = o.table_centre_world.z() + 10; z <= o.table_centre_world.z() + o.object_region_height_mm; z += 2.0) {
+    Eigen::Vector4d p = best;
+    p[3] = z;
+    const double sc = score(p);
+    if (sc > best_score) {
+      best_score = sc;
+      best[3] = z;
+    }
+  }
+  for (double step = 2.0; step >= 0.05; step *= 0.5) {
+    bool moved = true;
+    for (int it = 0; moved && it < 20; ++it) {
+      moved = false;
+      for (int c = 0; c < 4; ++c) {
+        for (const double sgn : {1.0, -1.0}) {
+          Eigen::Vector4d p = best;
+          p[c] += sgn * step;
+          const double sc = score(p);
+          if (sc > best_score) {
+            best_score = sc;
+            best = p;
+            moved = true;
+          }
+        }
+      }
+    }
+  }
+  fit->axis = best.head<2>();
+  fit->radius = best[2];
+  fit->top_z = best[3];
+  return best_score;
+}
+
 std::optional<CylinderFit> FitCylinder(const std::vector<StructureView>& views, const std::vector<FeatureResult>& features,
                                        const ScanOptions& o) {
   struct Plane {
@@ -140,7 +227,10 @@ std::optional<CylinderFit> FitCylinder(const std::vector<StructureView>& views, 
   };
   std::mt19937 rng(7);
   std::uniform_int_distribution<std::size_t> pick(0, planes.size() - 1);
-  std::vector<std::pair<int, double>> best;
+  // Every consensus found, largest first: the largest can be wrong (lines of the top face's shading or of
+  // the table taken for limbs), so the few largest distinct ones are each refined on the top rim and the
+  // one whose rim the images show best is taken.
+  std::vector<std::vector<std::pair<int, double>>> sets;
   for (int it = 0; it < 400; ++it) {
     const std::size_t i = pick(rng), j = pick(rng), k = pick(rng);
     if (i == j || j == k || i == k) continue;
@@ -150,38 +240,61 @@ std::optional<CylinderFit> FitCylinder(const std::vector<StructureView>& views, 
                             {static_cast<int>(k), signs & 4 ? 1.0 : -1.0}});
       if (!x) continue;
       auto in = inliers(*x);
-      if (in.size() > best.size()) best = std::move(in);
+      // Outlines from at least three views' worth of planes (two per view).
+      if (in.size() < 4) continue;
+      std::sort(in.begin(), in.end());
+      if (std::find(sets.begin(), sets.end(), in) == sets.end()) sets.push_back(std::move(in));
     }
   }
-  // Outlines from at least three views' worth of planes (two per view).
-  if (best.size() < 4) return std::nullopt;
-  const auto x = solve(best);
-  if (!x) return std::nullopt;
-  CylinderFit fit;
-  fit.axis = x->head<2>();
-  fit.radius = x->z();
-  fit.planes = static_cast<int>(best.size());
-  std::vector<double> tops;
-  for (const auto& [i, sign] : best) {
-    const Plane& p = planes[static_cast<std::size_t>(i)];
-    // The tangent line: vertical, through the axis point moved r along -sign n.
-    const Vec2d foot = fit.axis - sign * fit.radius * p.n;
-    double top = -1e9;
-    for (const Vec3d& r : p.end_rays) {
-      // Closest approach of the ray c + t r to the vertical line (foot, z): solve in the horizontal plane.
-      const Vec2d rh = r.head<2>();
-      if (rh.squaredNorm() < 1e-12) continue;
-      const double t = (foot - p.centre.head<2>()).dot(rh) / rh.squaredNorm();
-      top = std::max(top, p.centre.z() + t * r.z());
+  std::stable_sort(sets.begin(), sets.end(), [](const auto& a, const auto& b) { return a.size() > b.size(); });
+  std::optional<CylinderFit> chosen;
+  double chosen_score = -1;
+  std::vector<cv::Mat> grad;
+  std::vector<CylinderFit> tried;
+  for (const auto& set : sets) {
+    if (tried.size() >= 6) break;
+    const auto x = solve(set);
+    if (!x) continue;
+    CylinderFit fit;
+    fit.axis = x->head<2>();
+    fit.radius = x->z();
+    fit.planes = static_cast<int>(set.size());
+    if (std::any_of(tried.begin(), tried.end(), [&](const CylinderFit& t) {
+          return (t.axis - fit.axis).norm() < 10.0 && std::abs(t.radius - fit.radius) < 5.0;
+        })) {
+      continue;
     }
-    tops.push_back(top);
+    tried.push_back(fit);
+    std::vector<double> tops;
+    for (const auto& [i, sign] : set) {
+      const Plane& p = planes[static_cast<std::size_t>(i)];
+      // The tangent line: vertical, through the axis point moved r along -sign n.
+      const Vec2d foot = fit.axis - sign * fit.radius * p.n;
+      double top = -1e9;
+      for (const Vec3d& r : p.end_rays) {
+        // Closest approach of the ray c + t r to the vertical line (foot, z): solve in the horizontal plane.
+        const Vec2d rh = r.head<2>();
+        if (rh.squaredNorm() < 1e-12) continue;
+        const double t = (foot - p.centre.head<2>()).dot(rh) / rh.squaredNorm();
+        top = std::max(top, p.centre.z() + t * r.z());
+      }
+      tops.push_back(top);
+    }
+    std::sort(tops.begin(), tops.end());
+    fit.top_z = tops[tops.size() / 2];
+    if (grad.empty()) grad = GradientMagnitudes(views);
+    const double score = RefineOnTopRim(views, grad, o, &fit);
+    if (!(fit.top_z > o.table_centre_world.z() + 5 &&
+          fit.top_z < o.table_centre_world.z() + o.object_region_height_mm)) {
+      continue;
+    }
+    if ((fit.axis - o.table_centre_world.head<2>()).norm() > o.object_region_radius_mm) continue;
+    if (score > chosen_score) {
+      chosen_score = score;
+      chosen = fit;
+    }
   }
-  std::sort(tops.begin(), tops.end());
-  fit.top_z = tops[tops.size() / 2];
-  if (!(fit.top_z > o.table_centre_world.z() + 5 && fit.top_z < o.table_centre_world.z() + o.object_region_height_mm)) {
-    return std::nullopt;
-  }
-  return fit;
+  return chosen;
 }
 
 Status StopArms(ScanDevices& d) {

@@ -153,18 +153,26 @@ TEST(ScanTest, RobotTwoTakesTheBestGraspItCanReach) {
   EXPECT_FALSE(ScanAndPick(d2, again.TrueCalibration(), o).ok()) << "with the best grasp alone robot 2 cannot pick it";
 }
 
-// A cylinder has no corners: it is fitted from its silhouettes (vertical tangent planes) and picked.
-TEST(ScanTest, CylinderIsFittedFromItsSilhouettesAndPicked) {
-  ScanTwin twin(Twin(sim::ObjectKind::kCylinder, 1));
-  ScanDevices d = twin.Devices();
-  ScanOptions o = twin.SetupOptions();
-  auto r = ScanAndPick(d, twin.TrueCalibration(), o);
-  ASSERT_TRUE(r.ok()) << r.status().ToString();
-  ASSERT_TRUE(r->cylinder);
-  const ScanTruth t = twin.Evaluate(*r, o);
-  EXPECT_LT(t.cylinder_axis_error_mm, 5.0);
-  EXPECT_LT(t.cylinder_radius_error_mm, 5.0);
-  EXPECT_TRUE(t.held && t.placed) << t.grasp_reason << "; " << r->pick.outcome;
+// A cylinder has no corners: it is fitted from its silhouettes (vertical tangent planes), refined on its
+// top rim (the limbs alone left the top 15-23 mm off, the axis 1-10 mm), and picked. Seed 77's scene 13
+// is one where the largest consensus of limb planes was wrong (axis 69 mm off) and the rim picks the
+// right one.
+TEST(ScanTest, CylinderIsFittedFromItsSilhouettesAndTopRimAndPicked) {
+  for (const auto& [seed, scene] : {std::pair<unsigned, unsigned>{3, 1}, {77, 13}}) {
+    ScanTwinOptions to = Twin(sim::ObjectKind::kCylinder, scene);
+    to.seed = seed;
+    ScanTwin twin(to);
+    ScanDevices d = twin.Devices();
+    ScanOptions o = twin.SetupOptions();
+    auto r = ScanAndPick(d, twin.TrueCalibration(), o);
+    ASSERT_TRUE(r.ok()) << r.status().ToString();
+    ASSERT_TRUE(r->cylinder);
+    const ScanTruth t = twin.Evaluate(*r, o);
+    EXPECT_LT(t.cylinder_axis_error_mm, 0.3) << "seed " << seed;
+    EXPECT_LT(t.cylinder_radius_error_mm, 0.3) << "seed " << seed;
+    EXPECT_LT(t.cylinder_top_error_mm, 0.3) << "seed " << seed;
+    EXPECT_TRUE(t.held && t.placed) << "seed " << seed << ": " << t.grasp_reason << "; " << r->pick.outcome;
+  }
 }
 
 // The projection matrices follow the encoders: a view's camera is where the chain puts it for the true
