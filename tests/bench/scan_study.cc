@@ -12,14 +12,17 @@
 // Usage: scan_study [--calibration DIR | --oracle] [--scenes 10] [--scene 0] [--seed 1] [--stations K]
 //                   [--span DEG] [--object NAME] [--elevation DEG] [--distance MM] [--flat-band]
 //                   [--junction-refit DEG] [--refine-poses]
-//                   [--no-rail-stops] [--no-track-test] [--no-table-support] [--rail-repeatability MM]
+//                   [--no-rail-stops] [--no-track-test] [--no-table-support] [--no-second-round]
+//                   [--rail-repeatability MM]
 //                   [--json FILE] [--out DIR]
 // --flat-band and --junction-refit DEG turn on the front end's opt-in fits (empl.photometric_flat_band,
 // empl.junction_refit_angle_deg), --refine-poses the bundle adjustment's view poses (within their priors),
 // to measure what they change in the scans; --no-rail-stops holds each station's rail stop at its
 // reading (the adjustment estimates them by default); --no-track-test keeps the observations a track
 // check by their own sigmas would drop (CorrespondenceOptions::track_outlier_z); --no-table-support
-// leaves the points near the table top free (ScanOptions::points_on_table); --rail-repeatability MM sets
+// leaves the points near the table top free (ScanOptions::points_on_table); --no-second-round takes no
+// extra stations when no grasp fits the first model (ScanOptions::extra_azimuths_deg);
+// --rail-repeatability MM sets
 // the twin's rail (0.1 mm std by default; 0 lands exactly where the encoder says), to tell the rail's share
 // of the errors.
 // --scene K starts at scene K (K, K+1, ... K+N-1), to look again at one scene of a longer study.
@@ -57,7 +60,8 @@ int Main(int argc, char** argv) {
   int scenes = 10, stations = 0, first_scene = 0;  // 0: the scan's default stations
   double span_deg = 0;             // > 0: the stations spread over +-span_deg
   double elevation_deg = 0, distance_mm = 0;
-  bool flat_band = false, refine_poses = false, rail_stops = true, track_test = true, table_support = true;
+  bool flat_band = false, refine_poses = false, rail_stops = true, track_test = true, table_support = true,
+       second_round = true;
   double junction_refit_deg = 0, rail_repeatability_mm = -1;
   unsigned seed = 1;
   for (int i = 1; i < argc; ++i) {
@@ -97,6 +101,7 @@ int Main(int argc, char** argv) {
     else if (a == "--no-rail-stops") rail_stops = false;
     else if (a == "--no-track-test") track_test = false;
     else if (a == "--no-table-support") table_support = false;
+    else if (a == "--no-second-round") second_round = false;
     else if (a == "--junction-refit") junction_refit_deg = number();
     else if (a == "--rail-repeatability") rail_repeatability_mm = number();
     else {
@@ -105,7 +110,7 @@ int Main(int argc, char** argv) {
                  "[--stations K] [--span DEG] "
                  "[--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--flat-band] "
                  "[--junction-refit DEG] [--refine-poses] [--no-rail-stops] [--no-track-test] [--no-table-support] "
-                 "[--rail-repeatability MM] [--json FILE] "
+                 "[--no-second-round] [--rail-repeatability MM] [--json FILE] "
                  "[--out DIR]\n");
       return 2;
     }
@@ -143,7 +148,7 @@ int Main(int argc, char** argv) {
                                                                       {"bracket", sim::ObjectKind::kLBracket},
                                                                       {"cylinder", sim::ObjectKind::kCylinder}};
   nlohmann::json all = nlohmann::json::array();
-  int total = 0, picked = 0, failed_scans = 0;
+  int total = 0, picked = 0, failed_scans = 0, second_rounds = 0;
   std::vector<double> errors_all, ms_all;
   workcell::CorrespondenceTruth match_all;  // pooled over every scene
   double max_err_all = 0;
@@ -176,6 +181,7 @@ int Main(int argc, char** argv) {
       if (!rail_stops) o.structure.bundle_adjustment.mount_prior_mm = 0;
       if (!track_test) o.structure.correspondence.track_outlier_z = 0;
       o.points_on_table = table_support;
+      if (!second_round) o.extra_azimuths_deg.clear();
       if (stations > 0 || span_deg > 0) {
         // K stations (default: as many as the scan's default) evenly over +-span (default: its span).
         const double span = span_deg > 0 ? span_deg : std::abs(o.azimuths_deg.front());
@@ -219,8 +225,12 @@ int Main(int argc, char** argv) {
       const workcell::CorrespondenceTruth m = twin.EvaluateCorrespondence(*r);
       if (m.scored) {
         match.Add(m);
-        row.update({{"pair_true_matches", m.true_matches}, {"pair_corners_matched", m.corners_matched}, {"pair_false_matches", m.false_matches},
-                    {"pair_found_in_both", m.found_in_both}, {"pair_visible_in_both", m.visible_in_both},
+        row.update({{"pair_true_matches", m.true_matches},
+                    {"pair_corners_matched", m.corners_matched},
+                    {"pair_false_matches", m.false_matches},
+                    {"pair_background_matches", m.background_matches},
+                    {"pair_found_in_both", m.found_in_both},
+                    {"pair_visible_in_both", m.visible_in_both},
                     {"epipolar_median_px", Median(m.epipolar_px)}});
       } else {
         fmt::print(stderr, "  {} scene {}: frames and views do not line up; correspondence not scored\n", name, s);
@@ -243,10 +253,14 @@ int Main(int argc, char** argv) {
       picked += ok_pick ? 1 : 0;
       ms.push_back(r->structure.total_ms);
       ms_all.push_back(r->structure.total_ms);
+      second_rounds += r->second_round ? 1 : 0;
       row.update({{"views", r->views.size()},
+                  {"second_round", r->second_round},
                   {"matched", t.matched_vertices},
                   {"true_vertices", t.true_vertices},
-                  {"mean_mm", t.mean_vertex_error_mm}, {"vertex_error_mm", t.vertex_error_mm}, {"vertex_height_mm", t.vertex_height_mm},
+                  {"mean_mm", t.mean_vertex_error_mm},
+                  {"vertex_error_mm", t.vertex_error_mm},
+                  {"vertex_height_mm", t.vertex_height_mm},
                   {"max_mm", t.max_vertex_error_mm},
                   {"spurious", t.spurious_points},
                   {"object_points", t.object_points},
@@ -293,14 +307,27 @@ int Main(int argc, char** argv) {
     }
     match_all.Add(match);
   }
-  fmt::print("all: {} scenes, {} scans failed, picks succeeded {}/{} ({:.1f} %), worst corner error {:.3f} mm, "
-             "structure time median {:.1f} ms\n",
-             total, failed_scans, picked, total, 100.0 * picked / total, max_err_all, Median(ms_all));
+  fmt::print(
+      "all: {} scenes, {} scans failed, picks succeeded {}/{} ({:.1f} %), worst corner error {:.3f} mm, "
+      "structure time median {:.1f} ms; {} scan(s) took the second round of stations\n",
+      total,
+      failed_scans,
+      picked,
+      total,
+      100.0 * picked / total,
+      max_err_all,
+      Median(ms_all),
+      second_rounds);
   fmt::print("correspondence over view pairs: {} true, {} false matches: precision {:.2f} %, recall {:.2f} % of the corners "
              "found in both views ({}), {:.2f} % of those visible in both ({}); epipolar error of matches median {:.4f} px\n",
              match_all.true_matches, match_all.false_matches, 100.0 * match_all.precision(), 100.0 * match_all.recall(),
              match_all.found_in_both, 100.0 * match_all.recall_of_visible(), match_all.visible_in_both,
              Median(match_all.epipolar_px));
+  fmt::print(
+      "  not scored: {} matched pairs of background points (at no true corner, the 3D point over {:g} mm outside "
+      "the target's box)\n",
+      match_all.background_matches,
+      workcell::kBackgroundMarginMm);
   fmt::print("epipolar error median with the adjusted views (each station's rail stop estimated): {:.4f} px over {}\n",
              Median(match_all.epipolar_adjusted_px),
              match_all.epipolar_adjusted_px.size());

@@ -373,6 +373,9 @@ Status ScanOptions::Check() const {
   for (double a : azimuths_deg) {
     if (!std::isfinite(a)) return InvalidArgument("scan: station azimuths must be finite");
   }
+  for (double a : extra_azimuths_deg) {
+    if (!std::isfinite(a)) return InvalidArgument("scan: the second round's station azimuths must be finite");
+  }
   if (!(object_region_radius_mm > 0 && object_region_height_mm > 0)) {
     return InvalidArgument("scan: the object region's radius and height must be positive");
   }
@@ -509,15 +512,16 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
   const Vec3d aim = o.table_centre_world + Vec3d(0, 0, o.aim_height_mm);
   const double el = DegToRad(o.elevation_deg);
   Joints q_prev = JointsFromDeg({0, -40, 110, 0, 20, 0});
-  for (std::size_t s = 0; s < o.azimuths_deg.size(); ++s) {
+  // Station s (numbered from 0 over both rounds) at the set azimuth: the head pose, both cameras fixating
+  // the table, their images and projection matrices appended to report.views.
+  auto take_station = [&](std::size_t s, std::size_t stations, double set_azimuth_deg, double progress) -> Status {
     if (IsCancelled(o)) return cancelled();
-    Progress(o, 0.05 + 0.4 * static_cast<double>(s) / static_cast<double>(o.azimuths_deg.size()),
-             fmt::format("station {}/{} (azimuth {:.0f} deg)", s + 1, o.azimuths_deg.size(), o.azimuths_deg[s]));
+    Progress(o, progress, fmt::format("station {}/{} (azimuth {:.0f} deg)", s + 1, stations, set_azimuth_deg));
     // The station's head pose; a station the arm cannot reach is moved towards azimuth 0 in steps of
     // station_step_deg (up to station_retries times), since a narrower view beats no view.
     std::optional<std::pair<double, Joints>> pose;
     Status last = NotFound("no rail position tried");
-    double az_deg = o.azimuths_deg[s];
+    double az_deg = set_azimuth_deg;
     for (int retry = 0; !pose && retry <= o.station_retries; ++retry) {
       if (retry > 0) {
         const double inward = std::min(o.station_step_deg, std::abs(az_deg));
@@ -604,110 +608,163 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
       }
       report.views.push_back(std::move(sv));
     }
+    return Status::Ok();
+  };
+  for (std::size_t s = 0; s < o.azimuths_deg.size(); ++s) {
+    const Status st = take_station(s,
+                                   o.azimuths_deg.size(),
+                                   o.azimuths_deg[s],
+                                   0.05 + 0.4 * static_cast<double>(s) / static_cast<double>(o.azimuths_deg.size()));
+    if (!st.ok()) return st;
   }
-  const double t1 = Seconds();
-  report.acquisition_s = t1 - t0;
+  report.acquisition_s = Seconds() - t0;
 
-  // 2. Structure.
-  if (IsCancelled(o)) return cancelled();
-  Progress(o, 0.5, fmt::format("reconstructing from {} views", report.views.size()));
-  std::vector<StructureView> views;
-  for (const ScanView& v : report.views) views.push_back(v.view);
-  StructureOptions structure_options = o.structure;
-  if (o.points_on_table && !structure_options.support) {
-    optim::BaPlane table;
-    table.normal = Vec3d::UnitZ();
-    table.offset = o.table_centre_world.z();
-    table.offset_prior_mm = o.table_height_prior_mm;
-    table.sigma_mm = o.table_flatness_mm;
-    structure_options.support = table;
-  }
-  auto structure = ReconstructStructure(views, structure_options);
-  if (!structure.ok()) return fail(structure.status(), "reconstruction");
-  report.structure = std::move(*structure);
-  const StructureModel& model = report.structure.model;
-  std::vector<Vec3d> object;
-  for (std::size_t i = 0; i < model.points.size(); ++i) {
-    const Vec3d& p = model.points[i].xyz;
-    const Vec3d rel = p - o.table_centre_world;
-    if (rel.head<2>().norm() < o.object_region_radius_mm && rel.z() > -o.table_tolerance_mm &&
-        rel.z() < o.object_region_height_mm) {
-      report.object_points.push_back(static_cast<int>(i));
-      object.push_back(p);
+  // 2. Structure, and 3. the grasps (§8.11) in the world, best first. When no grasp fits the model of
+  // the first round's views, the object's faces a grasp needs were not all seen: a second round of
+  // stations (extra_azimuths_deg) is taken and the model rebuilt from all views.
+  bool no_grasp_fits = false;
+  auto model_and_grasps = [&]() -> Result<std::vector<GraspPlan>> {
+    const double t1 = Seconds();
+    if (IsCancelled(o)) return cancelled();
+    Progress(o, 0.5, fmt::format("reconstructing from {} views", report.views.size()));
+    report.object_points.clear();
+    report.cylinder = false;
+    std::vector<StructureView> views;
+    for (const ScanView& v : report.views) views.push_back(v.view);
+    StructureOptions structure_options = o.structure;
+    if (o.points_on_table && !structure_options.support) {
+      optim::BaPlane table;
+      table.normal = Vec3d::UnitZ();
+      table.offset = o.table_centre_world.z();
+      table.offset_prior_mm = o.table_height_prior_mm;
+      table.sigma_mm = o.table_flatness_mm;
+      structure_options.support = table;
     }
-  }
-  {
-    const std::size_t before = report.object_points.size();
-    report.object_points = DropStrayPoints(model, report.object_points, o);
-    if (report.object_points.size() < before) {
-      spdlog::info("scan: {} stray point(s) in the object region dropped (joined to no other point, away from the object)",
-                   before - report.object_points.size());
-      object.clear();
-      for (const int i : report.object_points) object.push_back(model.points[static_cast<std::size_t>(i)].xyz);
-    }
-  }
-  const Correspondences& cc = report.structure.correspondences;
-  spdlog::info("scan: {} points, {} edges, {} on the object; reprojection RMS {:.3f} -> {:.3f} px; {} view pairs, "
-               "{} tracks split, {} observations rejected",
-               model.points.size(), model.edges.size(), object.size(), report.structure.adjustment.initial_rms_px,
-               report.structure.adjustment.final_rms_px, cc.pairs_matched, cc.conflicts_split, cc.observations_rejected);
-  if (!report.structure.on_support.empty() && !report.structure.adjustment.plane_offset.empty()) {
-    spdlog::info(
-        "scan: {} point(s) held on the table top; its height as the adjustment found it: {:+.3f} mm from the setup's",
-        report.structure.on_support.size(),
-        report.structure.adjustment.plane_offset.front() - o.table_centre_world.z());
-  }
-  if (!report.structure.adjustment.mount_shift_mm.empty()) {
-    spdlog::info("scan: the stations' rail stops, as the adjustment found them: {:.3f} mm from their readings",
-                 fmt::join(report.structure.adjustment.mount_shift_mm, ", "));
-  }
-  if (!o.out_dir.empty()) {
-    IDI_RETURN_IF_ERROR(WriteFileAtomically((fs::path(o.out_dir) / "model.ply").string(), ModelToPly(model)));
-    for (std::size_t v = 0; v < views.size(); ++v) {
-      const fs::path file = fs::path(o.out_dir) / (views[v].name + "_model.png");
-      if (!cv::imwrite(file.string(), DrawModelOverlay(views[v], model, &report.structure.features[v]))) {
-        return IoError(file.string() + ": cannot write the overlay");
+    auto structure = ReconstructStructure(views, structure_options);
+    if (!structure.ok()) return fail(structure.status(), "reconstruction");
+    report.structure = std::move(*structure);
+    const StructureModel& model = report.structure.model;
+    std::vector<Vec3d> object;
+    for (std::size_t i = 0; i < model.points.size(); ++i) {
+      const Vec3d& p = model.points[i].xyz;
+      const Vec3d rel = p - o.table_centre_world;
+      if (rel.head<2>().norm() < o.object_region_radius_mm && rel.z() > -o.table_tolerance_mm &&
+          rel.z() < o.object_region_height_mm) {
+        report.object_points.push_back(static_cast<int>(i));
+        object.push_back(p);
       }
     }
-  }
-  // No corners on the object: a cylinder, from its silhouettes. Its model for the grasp is the top and
-  // bottom rims (48 points each).
-  if (object.size() < 3) {
-    if (const auto cyl = FitCylinder(views, report.structure.features, o)) {
-      spdlog::info("scan: no corners; a cylinder from {} silhouette planes: axis ({:.1f}, {:.1f}), radius {:.1f} mm, top {:.1f} mm",
-                   cyl->planes, cyl->axis.x(), cyl->axis.y(), cyl->radius, cyl->top_z);
-      report.cylinder = true;
-      report.cylinder_axis_xy = cyl->axis;
-      report.cylinder_radius_mm = cyl->radius;
-      report.cylinder_top_z = cyl->top_z;
-      object.clear();
-      for (const double z : {o.table_centre_world.z(), cyl->top_z}) {
-        for (int k = 0; k < 48; ++k) {
-          const double a = 2 * kPi * k / 48.0;
-          object.emplace_back(cyl->axis.x() + cyl->radius * std::cos(a), cyl->axis.y() + cyl->radius * std::sin(a), z);
+    {
+      const std::size_t before = report.object_points.size();
+      report.object_points = DropStrayPoints(model, report.object_points, o);
+      if (report.object_points.size() < before) {
+        spdlog::info(
+            "scan: {} stray point(s) in the object region dropped (joined to no other point, away from the object)",
+            before - report.object_points.size());
+        object.clear();
+        for (const int i : report.object_points) object.push_back(model.points[static_cast<std::size_t>(i)].xyz);
+      }
+    }
+    const Correspondences& cc = report.structure.correspondences;
+    spdlog::info(
+        "scan: {} points, {} edges, {} on the object; reprojection RMS {:.3f} -> {:.3f} px; {} view pairs, "
+        "{} tracks split, {} observations rejected",
+        model.points.size(),
+        model.edges.size(),
+        object.size(),
+        report.structure.adjustment.initial_rms_px,
+        report.structure.adjustment.final_rms_px,
+        cc.pairs_matched,
+        cc.conflicts_split,
+        cc.observations_rejected);
+    if (!report.structure.on_support.empty() && !report.structure.adjustment.plane_offset.empty()) {
+      spdlog::info(
+          "scan: {} point(s) held on the table top; its height as the adjustment found it: {:+.3f} mm from the setup's",
+          report.structure.on_support.size(),
+          report.structure.adjustment.plane_offset.front() - o.table_centre_world.z());
+    }
+    if (!report.structure.adjustment.mount_shift_mm.empty()) {
+      spdlog::info("scan: the stations' rail stops, as the adjustment found them: {:.3f} mm from their readings",
+                   fmt::join(report.structure.adjustment.mount_shift_mm, ", "));
+    }
+    if (!o.out_dir.empty()) {
+      IDI_RETURN_IF_ERROR(WriteFileAtomically((fs::path(o.out_dir) / "model.ply").string(), ModelToPly(model)));
+      for (std::size_t v = 0; v < views.size(); ++v) {
+        const fs::path file = fs::path(o.out_dir) / (views[v].name + "_model.png");
+        if (!cv::imwrite(file.string(), DrawModelOverlay(views[v], model, &report.structure.features[v]))) {
+          return IoError(file.string() + ": cannot write the overlay");
         }
       }
     }
+    // No corners on the object: a cylinder, from its silhouettes. Its model for the grasp is the top and
+    // bottom rims (48 points each).
+    if (object.size() < 3) {
+      if (const auto cyl = FitCylinder(views, report.structure.features, o)) {
+        spdlog::info(
+            "scan: no corners; a cylinder from {} silhouette planes: axis ({:.1f}, {:.1f}), radius {:.1f} mm, top "
+            "{:.1f} mm",
+            cyl->planes,
+            cyl->axis.x(),
+            cyl->axis.y(),
+            cyl->radius,
+            cyl->top_z);
+        report.cylinder = true;
+        report.cylinder_axis_xy = cyl->axis;
+        report.cylinder_radius_mm = cyl->radius;
+        report.cylinder_top_z = cyl->top_z;
+        object.clear();
+        for (const double z : {o.table_centre_world.z(), cyl->top_z}) {
+          for (int k = 0; k < 48; ++k) {
+            const double a = 2 * kPi * k / 48.0;
+            object.emplace_back(
+                cyl->axis.x() + cyl->radius * std::cos(a), cyl->axis.y() + cyl->radius * std::sin(a), z);
+          }
+        }
+      }
+    }
+    report.reconstruction_s += Seconds() - t1;
+    if (object.size() < 3) {
+      return fail(NotFound(fmt::format("only {} reconstructed points on the table: no object found", object.size())),
+                  "finding the object");
+    }
+    // The object's edges, renumbered into `object` (the planner's cross-sections come from them).
+    std::vector<int> index_in_object(model.points.size(), -1);
+    for (std::size_t k = 0; k < report.object_points.size(); ++k) {
+      index_in_object[static_cast<std::size_t>(report.object_points[k])] = static_cast<int>(k);
+    }
+    std::vector<std::pair<int, int>> object_edges;
+    for (const auto& [a, b] : model.edges) {
+      const int ia = index_in_object[static_cast<std::size_t>(a)], ib = index_in_object[static_cast<std::size_t>(b)];
+      if (ia >= 0 && ib >= 0) object_edges.emplace_back(ia, ib);
+    }
+    if (report.cylinder) object_edges.clear();
+    auto plans = PlanTopGrasps(object, o.table_centre_world.z(), o.grasp, object_edges, o.grasp_alternatives);
+    no_grasp_fits = !plans.ok() && plans.status().code() == StatusCode::kNotFound && !report.cylinder;
+    return plans;
+  };
+  auto plans = model_and_grasps();
+  if (no_grasp_fits && !o.extra_azimuths_deg.empty()) {
+    spdlog::warn("scan: {}; taking {} more station(s) for the faces the model lacks",
+                 plans.status().message(),
+                 o.extra_azimuths_deg.size());
+    const double t_more = Seconds();
+    for (std::size_t k = 0; k < o.extra_azimuths_deg.size(); ++k) {
+      const Status st =
+          take_station(o.azimuths_deg.size() + k,
+                       o.azimuths_deg.size() + o.extra_azimuths_deg.size(),
+                       o.extra_azimuths_deg[k],
+                       0.5 + 0.1 * static_cast<double>(k) / static_cast<double>(o.extra_azimuths_deg.size()));
+      if (!st.ok()) return st;
+    }
+    report.acquisition_s += Seconds() - t_more;
+    report.second_round = true;
+    plans = model_and_grasps();
   }
-  report.reconstruction_s = Seconds() - t1;
-  if (object.size() < 3) {
-    return fail(NotFound(fmt::format("only {} reconstructed points on the table: no object found", object.size())),
-                "finding the object");
+  if (!plans.ok()) {
+    if (!no_grasp_fits) return plans.status();  // already named by its step
+    return fail(plans.status(), "grasp planning");
   }
-  // 3. Grasp (§8.11), in the world, then in robot 2's base (eq. 3.4).
-  // The object's edges, renumbered into `object` (the planner's cross-sections come from them).
-  std::vector<int> index_in_object(model.points.size(), -1);
-  for (std::size_t k = 0; k < report.object_points.size(); ++k) {
-    index_in_object[static_cast<std::size_t>(report.object_points[k])] = static_cast<int>(k);
-  }
-  std::vector<std::pair<int, int>> object_edges;
-  for (const auto& [a, b] : model.edges) {
-    const int ia = index_in_object[static_cast<std::size_t>(a)], ib = index_in_object[static_cast<std::size_t>(b)];
-    if (ia >= 0 && ib >= 0) object_edges.emplace_back(ia, ib);
-  }
-  if (report.cylinder) object_edges.clear();
-  auto plans = PlanTopGrasps(object, o.table_centre_world.z(), o.grasp, object_edges, o.grasp_alternatives);
-  if (!plans.ok()) return fail(plans.status(), "grasp planning");
+  // 4. The pick: the grasp in robot 2's base (eq. 3.4).
   report.grasp = plans->front();
   if (!o.pick) return report;
 
@@ -838,6 +895,7 @@ nlohmann::json ScanReportJson(const ScanReport& r) {
   if (!r.structure.adjustment.plane_offset.empty()) {
     j["table_top_z_mm"] = r.structure.adjustment.plane_offset.front();  // the adjustment's estimate
   }
+  j["second_round"] = r.second_round;
   j["views"] = nlohmann::json::array();
   for (const ScanView& v : r.views) {
     j["views"].push_back({{"name", v.view.name}, {"station", v.station}, {"azimuth_deg", v.azimuth_deg}, {"rail1_mm", v.rail1_mm},

@@ -59,6 +59,10 @@ struct ScanOptions {
   // slope, a bracket's inner faces), which a grasp needs. In the twin (scan_study --oracle, 2 x 120
   // scenes) picks succeed in 92 % of scenes with these, against 71 % with -35, 0, 35.
   std::vector<double> azimuths_deg = {-95, -31.7, 31.7, 95};
+  // When no grasp fits the model from those views (a face the grasp needs was not seen, or seen at too
+  // low a contrast), a second round of stations at these azimuths, and the model rebuilt from all views.
+  // Empty: no second round.
+  std::vector<double> extra_azimuths_deg = {-63.3, 0, 63.3};
   // A station the arm cannot reach is moved this much towards azimuth 0, up to station_retries times.
   double station_step_deg = 10;
   int station_retries = 3;
@@ -131,6 +135,7 @@ struct ScanReport {
   GraspPlan grasp;                 // world frame (R1)
   Rigid3d base2_from_grasp;        // robot 2's base frame at its rail position
   PickReport pick;
+  bool second_round = false;  // the extra stations were taken (no grasp fitted the first model)
   double acquisition_s = 0, reconstruction_s = 0, pick_s = 0;
 };
 

@@ -185,6 +185,21 @@ CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const 
       label[v].push_back(std::move(within));
     }
   }
+  // The target's box (world frame, grown by kBackgroundMarginMm): a track whose points are at no true
+  // corner in either view and whose 3D point lies outside it is background the truth has no corners for
+  // (floor tiles and texture seen past the table inside the object region), not a false match of the
+  // object's corners.
+  const sim::ObjectWireframe wire = sim::ObjectCorners(target_.shape);
+  Vec3d box_min = Vec3d::Constant(std::numeric_limits<double>::infinity()), box_max = -box_min;
+  for (const Vec3d& v : wire.vertices) {
+    const Vec3d w = target_.world_from_object * v;
+    box_min = box_min.cwiseMin(w);
+    box_max = box_max.cwiseMax(w);
+  }
+  auto background = [&](const Vec3d& x) {
+    if (wire.vertices.empty()) return false;
+    return ((x - box_min).array() < -kBackgroundMarginMm).any() || ((x - box_max).array() > kBackgroundMarginMm).any();
+  };
   auto common = [](const std::set<int>& a, const std::set<int>& b) {
     long c = 0;
     for (const int x : a) c += b.count(x) ? 1 : 0;
@@ -219,6 +234,8 @@ CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const 
         if (same != la.end()) {
           ++score.true_matches;
           matched.insert(*same);
+        } else if (la.empty() && lb.empty() && background(track.xyz)) {
+          ++score.background_matches;
         } else {
           ++score.false_matches;
         }
@@ -242,6 +259,7 @@ CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const 
 
 void CorrespondenceTruth::Add(const CorrespondenceTruth& other) {
   true_matches += other.true_matches;
+  background_matches += other.background_matches;
   false_matches += other.false_matches;
   corners_matched += other.corners_matched;
   found_in_both += other.found_in_both;

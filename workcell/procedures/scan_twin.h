@@ -53,8 +53,13 @@ struct ScanTruth {
 // labelled with the visible true 3D corners whose images lie within 1.5 px of it (usually one; two where
 // corners meet in one point of the image), or with none (a T-junction, a texture corner, a stray point);
 // a pair's match is true when both points carry the same corner.
+inline constexpr double kBackgroundMarginMm = 20.0;
+
 struct CorrespondenceTruth {
   long true_matches = 0, false_matches = 0;
+  // Pairs of points at no true corner whose track's 3D point lies away from the target (more than
+  // kBackgroundMarginMm outside its box): background inside the object region, counted in neither.
+  long background_matches = 0;
   long corners_matched = 0;  // per pair: distinct true corners among the true matches
   long found_in_both = 0;    // per pair: true corners found as an IDI point (inside the object region) in both views
   long visible_in_both = 0;  // per pair: true corners visible inside the object region in both views
