@@ -13,7 +13,7 @@
 //                   [--span DEG] [--object NAME] [--elevation DEG] [--distance MM] [--flat-band]
 //                   [--junction-refit DEG] [--refine-poses]
 //                   [--no-rail-stops] [--no-track-test] [--no-table-support] [--no-second-round]
-//                   [--rail-repeatability MM]
+//                   [--no-adjusted-test] [--rail-repeatability MM]
 //                   [--json FILE] [--out DIR]
 // --flat-band and --junction-refit DEG turn on the front end's opt-in fits (empl.photometric_flat_band,
 // empl.junction_refit_angle_deg), --refine-poses the bundle adjustment's view poses (within their priors),
@@ -21,7 +21,8 @@
 // reading (the adjustment estimates them by default); --no-track-test keeps the observations a track
 // check by their own sigmas would drop (CorrespondenceOptions::track_outlier_z); --no-table-support
 // leaves the points near the table top free (ScanOptions::points_on_table); --no-second-round takes no
-// extra stations when no grasp fits the first model (ScanOptions::extra_azimuths_deg);
+// extra stations when no grasp fits the first model (ScanOptions::extra_azimuths_deg); --no-adjusted-test
+// keeps every observation after the adjustment (StructureOptions::adjusted_outlier_z);
 // --rail-repeatability MM sets
 // the twin's rail (0.1 mm std by default; 0 lands exactly where the encoder says), to tell the rail's share
 // of the errors.
@@ -61,7 +62,7 @@ int Main(int argc, char** argv) {
   double span_deg = 0;             // > 0: the stations spread over +-span_deg
   double elevation_deg = 0, distance_mm = 0;
   bool flat_band = false, refine_poses = false, rail_stops = true, track_test = true, table_support = true,
-       second_round = true;
+       second_round = true, adjusted_test = true;
   double junction_refit_deg = 0, rail_repeatability_mm = -1;
   unsigned seed = 1;
   for (int i = 1; i < argc; ++i) {
@@ -102,6 +103,8 @@ int Main(int argc, char** argv) {
     else if (a == "--no-track-test") track_test = false;
     else if (a == "--no-table-support") table_support = false;
     else if (a == "--no-second-round") second_round = false;
+    else if (a == "--no-adjusted-test")
+      adjusted_test = false;
     else if (a == "--junction-refit") junction_refit_deg = number();
     else if (a == "--rail-repeatability") rail_repeatability_mm = number();
     else {
@@ -110,7 +113,7 @@ int Main(int argc, char** argv) {
                  "[--stations K] [--span DEG] "
                  "[--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--flat-band] "
                  "[--junction-refit DEG] [--refine-poses] [--no-rail-stops] [--no-track-test] [--no-table-support] "
-                 "[--no-second-round] [--rail-repeatability MM] [--json FILE] "
+                 "[--no-second-round] [--no-adjusted-test] [--rail-repeatability MM] [--json FILE] "
                  "[--out DIR]\n");
       return 2;
     }
@@ -158,6 +161,7 @@ int Main(int argc, char** argv) {
     if (!only.empty() && only != name) continue;
     int found = 0, possible = 0, spurious = 0, objpts = 0, held = 0, placed = 0;
     std::vector<double> on_table, above_table;  // corner errors: bottom corners (on the table) and the rest
+    std::vector<double> six_views, fewer_views;  // the same by how many views observe the corner's model point
     double sum = 0, worst = 0;
     int matched = 0;
     workcell::CorrespondenceTruth match;  // pooled over this object's scenes
@@ -181,6 +185,7 @@ int Main(int argc, char** argv) {
       if (!rail_stops) o.structure.bundle_adjustment.mount_prior_mm = 0;
       if (!track_test) o.structure.correspondence.track_outlier_z = 0;
       o.points_on_table = table_support;
+      if (!adjusted_test) o.structure.adjusted_outlier_z = 0;
       if (!second_round) o.extra_azimuths_deg.clear();
       if (stations > 0 || span_deg > 0) {
         // K stations (default: as many as the scan's default) evenly over +-span (default: its span).
@@ -237,7 +242,9 @@ int Main(int argc, char** argv) {
       }
       found += t.matched_vertices;
       for (std::size_t k = 0; k < t.vertex_error_mm.size(); ++k) {
-        if (t.vertex_error_mm[k] >= 0) (t.vertex_height_mm[k] < 1.0 ? on_table : above_table).push_back(t.vertex_error_mm[k]);
+        if (t.vertex_error_mm[k] < 0) continue;
+        (t.vertex_height_mm[k] < 1.0 ? on_table : above_table).push_back(t.vertex_error_mm[k]);
+        (t.vertex_views[k] >= 6 ? six_views : fewer_views).push_back(t.vertex_error_mm[k]);
       }
       possible += t.true_vertices;
       spurious += t.spurious_points;
@@ -261,6 +268,7 @@ int Main(int argc, char** argv) {
                   {"mean_mm", t.mean_vertex_error_mm},
                   {"vertex_error_mm", t.vertex_error_mm},
                   {"vertex_height_mm", t.vertex_height_mm},
+                  {"vertex_views", t.vertex_views},
                   {"max_mm", t.max_vertex_error_mm},
                   {"spurious", t.spurious_points},
                   {"object_points", t.object_points},
@@ -304,6 +312,16 @@ int Main(int argc, char** argv) {
       auto max = [](const std::vector<double>& v) { return v.empty() ? 0.0 : *std::max_element(v.begin(), v.end()); };
       fmt::print("{:9} corners above the table {} (mean {:.3f}, max {:.3f} mm), on the table {} (mean {:.3f}, max {:.3f} mm)\n", "",
                  above_table.size(), mean(above_table), max(above_table), on_table.size(), mean(on_table), max(on_table));
+      fmt::print(
+          "{:9} corners seen in 6 views or more {} (mean {:.3f}, max {:.3f} mm), in fewer {} (mean {:.3f}, max {:.3f} "
+          "mm)\n",
+          "",
+          six_views.size(),
+          mean(six_views),
+          max(six_views),
+          fewer_views.size(),
+          mean(fewer_views),
+          max(fewer_views));
     }
     match_all.Add(match);
   }

@@ -668,7 +668,7 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
     const Correspondences& cc = report.structure.correspondences;
     spdlog::info(
         "scan: {} points, {} edges, {} on the object; reprojection RMS {:.3f} -> {:.3f} px; {} view pairs, "
-        "{} tracks split, {} observations rejected",
+        "{} tracks split, {} observations rejected, {} more after the adjustment",
         model.points.size(),
         model.edges.size(),
         object.size(),
@@ -676,7 +676,8 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
         report.structure.adjustment.final_rms_px,
         cc.pairs_matched,
         cc.conflicts_split,
-        cc.observations_rejected);
+        cc.observations_rejected,
+        report.structure.adjusted_observations_dropped);
     if (!report.structure.on_support.empty() && !report.structure.adjustment.plane_offset.empty()) {
       spdlog::info(
           "scan: {} point(s) held on the table top; its height as the adjustment found it: {:+.3f} mm from the setup's",

@@ -96,8 +96,17 @@ ScanTruth ScanTwin::Evaluate(const ScanReport& report, const ScanOptions& option
   double sum = 0;
   for (const Vec3d& c : corners) {
     double best = std::numeric_limits<double>::infinity();
-    for (int i : report.object_points) best = std::min(best, (pts[static_cast<std::size_t>(i)].xyz - c).norm());
+    int nearest = -1;
+    for (int i : report.object_points) {
+      const double d = (pts[static_cast<std::size_t>(i)].xyz - c).norm();
+      if (d < best) {
+        best = d;
+        nearest = i;
+      }
+    }
     t.vertex_error_mm.push_back(best <= t.match_mm ? best : -1.0);
+    t.vertex_views.push_back(
+        best <= t.match_mm ? static_cast<int>(pts[static_cast<std::size_t>(nearest)].observations.size()) : 0);
     t.vertex_height_mm.push_back(c.z() - options.table_centre_world.z());
     if (best <= t.match_mm) {
       ++t.matched_vertices;

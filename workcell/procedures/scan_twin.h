@@ -36,6 +36,7 @@ struct ScanTruth {
   double mean_vertex_error_mm = 0, max_vertex_error_mm = 0;
   // Per true corner: its error (-1 when not matched) and its height above the table top.
   std::vector<double> vertex_error_mm, vertex_height_mm;
+  std::vector<int> vertex_views;  // per true corner: the views that observe its model point (0 when not matched)
   int object_points = 0;        // model points the scan put on the object
   int spurious_points = 0;      // of those, farther than `match_mm` from every true corner (non-cylinders)
   bool held = false;            // the hand's grasp held (the twin's contact physics)

@@ -42,6 +42,11 @@ struct StructureOptions {
   // triangulate within support_snap_mm of it are held on it in the adjustment, its offset estimated.
   std::optional<optim::BaPlane> support;
   double support_snap_mm = 2.0;
+  // After the adjustment: a point's observations (four or more) must agree by their sigmas, widened by
+  // adjusted_sigma_floor_px, at a chi-square test of adjusted_outlier_z standard deviations; else the
+  // one without which the rest agree best is dropped and the adjustment runs again. 0: no test.
+  double adjusted_outlier_z = 3.09;
+  double adjusted_sigma_floor_px = 0.05;
 };
 
 struct StructureResult {
@@ -53,6 +58,7 @@ struct StructureResult {
   Correspondences correspondences;
   optim::BundleAdjustmentSummary adjustment;
   std::vector<int> on_support;  // model points held on the support plane in the adjustment
+  int adjusted_observations_dropped = 0;  // by the test after the adjustment (StructureOptions::adjusted_outlier_z)
   // Each view's cam_from_world after the adjustment (its mount's shift included; as given without one).
   std::vector<Rigid3d> adjusted_cam_from_world;
   double features_ms = 0, correspondence_ms = 0, adjustment_ms = 0, total_ms = 0;
