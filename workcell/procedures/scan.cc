@@ -626,7 +626,7 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
   auto model_and_grasps = [&]() -> Result<std::vector<GraspPlan>> {
     const double t1 = Seconds();
     if (IsCancelled(o)) return cancelled();
-    Progress(o, 0.5, fmt::format("reconstructing from {} views", report.views.size()));
+    Progress(o, report.second_round ? 0.65 : 0.5, fmt::format("reconstructing from {} views", report.views.size()));
     report.object_points.clear();
     report.cylinder = false;
     std::vector<StructureView> views;
