@@ -2,13 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <map>
 #include <numeric>
 #include <optional>
 
 #include "shared/reconstruction/triangulation.h"
-#include "shared/util/statistics.h"
 #include "shared/util/units.h"
 
 namespace idi {
@@ -357,7 +355,7 @@ Result<Correspondences> MatchViews(const std::vector<CorrespondenceView>& views,
   const auto raw_tracks = ChainTracks(point_offsets, point_offsets.back(), point_edges, &out.conflicts_split);
   const double min_angle = options.min_ray_angle_deg * kPi / 180.0;
   // Weighted: each IDI point by its sigma, widened by the floor; else every point alike.
-  auto triangulate = [&](const std::vector<Observation>& obs, bool weighted = false) {
+  auto rays = [&](const std::vector<Observation>& obs, bool weighted) {
     std::vector<PointObservation> po;
     for (const Observation& o : obs) {
       const ViewPoint& q = views[static_cast<std::size_t>(o.view)].features->points[static_cast<std::size_t>(o.index)];
@@ -366,11 +364,13 @@ Result<Correspondences> MatchViews(const std::vector<CorrespondenceView>& views,
                     q.xy,
                     weighted ? std::hypot(q.sigma_px, options.track_sigma_floor_px) : 0.0});
     }
-    return TriangulatePoint(po, min_angle);
+    return po;
   };
-  // Degrees of freedom of a point seen in n views: 2n residuals, 3 unknowns.
+  auto triangulate = [&](const std::vector<Observation>& obs, bool weighted = false) {
+    return TriangulatePoint(rays(obs, weighted), min_angle);
+  };
   auto consistent = [&](const TriangulatedPoint& tri, std::size_t n) {
-    return tri.chi2 <= ChiSquareQuantile(2.0 * static_cast<double>(n) - 3.0, options.track_outlier_z);
+    return ChiSquareConsistent(tri, n, options.track_outlier_z);
   };
   std::vector<std::vector<char>> taken(views.size());
   for (std::size_t v = 0; v < views.size(); ++v) taken[v].assign(views[v].features->points.size(), 0);
@@ -404,23 +404,11 @@ Result<Correspondences> MatchViews(const std::vector<CorrespondenceView>& views,
       // (the one with the largest residual is often a right one, when a precise wrong one pulls the point).
       std::optional<TriangulatedPoint> w = triangulate(obs, true);
       while (w && obs.size() >= 3 && !consistent(*w, obs.size())) {
-        std::size_t drop = obs.size();
-        double best = std::numeric_limits<double>::infinity();
-        std::optional<TriangulatedPoint> best_rest;
-        for (std::size_t k = 0; k < obs.size(); ++k) {
-          std::vector<Observation> rest = obs;
-          rest.erase(rest.begin() + static_cast<long>(k));
-          const auto r = triangulate(rest, true);
-          if (r && r->chi2 < best) {
-            best = r->chi2;
-            drop = k;
-            best_rest = r;
-          }
-        }
-        if (drop == obs.size()) break;
-        obs.erase(obs.begin() + static_cast<long>(drop));
+        const std::optional<LeftOut> left = LeaveOneOut(rays(obs, true), min_angle);
+        if (!left) break;
+        obs.erase(obs.begin() + static_cast<long>(left->index));
         ++out.observations_rejected;
-        w = best_rest;
+        w = left->rest;
       }
       if (w) tp = w;
     }

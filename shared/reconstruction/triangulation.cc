@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "shared/util/statistics.h"
+
 namespace idi {
 
 std::optional<TriangulatedPoint> TriangulatePoint(const std::vector<PointObservation>& observations,
@@ -90,6 +92,21 @@ std::optional<TriangulatedPoint> TriangulatePoint(const std::vector<PointObserva
   out.reprojection_rms_px = std::sqrt(sum_px2 / static_cast<double>(observations.size()));
   out.min_ray_angle_rad = max_angle;
   return out;
+}
+
+bool ChiSquareConsistent(const TriangulatedPoint& point, std::size_t observations, double z) {
+  return point.chi2 <= ChiSquareQuantile(2.0 * static_cast<double>(observations) - 3.0, z);
+}
+
+std::optional<LeftOut> LeaveOneOut(const std::vector<PointObservation>& observations, double min_angle_rad) {
+  std::optional<LeftOut> best;
+  for (std::size_t k = 0; k < observations.size(); ++k) {
+    std::vector<PointObservation> rest = observations;
+    rest.erase(rest.begin() + static_cast<std::ptrdiff_t>(k));
+    const auto t = TriangulatePoint(rest, min_angle_rad);
+    if (t && (!best || t->chi2 < best->rest.chi2)) best = LeftOut{k, *t};
+  }
+  return best;
 }
 
 std::optional<Line3d> TriangulateLine(const std::vector<LineObservation>& observations, double min_angle_rad) {

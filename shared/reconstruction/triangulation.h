@@ -1,6 +1,7 @@
 // Triangulation of points from rays and of lines from planes (§8.4, §8.5), over two or more views.
 #pragma once
 
+#include <cstddef>
 #include <optional>
 #include <vector>
 
@@ -28,6 +29,19 @@ struct TriangulatedPoint {
 // with fewer than two observations, rays (nearly) parallel, or the point behind a camera.
 std::optional<TriangulatedPoint> TriangulatePoint(const std::vector<PointObservation>& observations,
                                                   double min_angle_rad = 1e-3);
+
+// Whether a triangulation weighted by the observations' sigmas passes the chi-square test at z standard
+// deviations: n observations give 2n residuals for 3 unknowns.
+bool ChiSquareConsistent(const TriangulatedPoint& point, std::size_t observations, double z);
+
+// The observation without which the rest agree best (the rest's lowest chi-square; when a precise but
+// wrong observation pulls the point, the largest residual often belongs to a right one), and the rest's
+// triangulation. nullopt when no n - 1 of them triangulate.
+struct LeftOut {
+  std::size_t index = 0;
+  TriangulatedPoint rest;
+};
+std::optional<LeftOut> LeaveOneOut(const std::vector<PointObservation>& observations, double min_angle_rad = 1e-3);
 
 // One observation of a 3D line: its image line (undistorted pixel coordinates, normal . x = offset) in
 // a view with projection matrix P.

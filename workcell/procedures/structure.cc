@@ -4,7 +4,6 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <limits>
 #include <opencv2/imgproc.hpp>
 #include <optional>
 #include <thread>
@@ -12,7 +11,6 @@
 
 #include "shared/reconstruction/features_adapter.h"
 #include "shared/reconstruction/triangulation.h"
-#include "shared/util/statistics.h"
 
 namespace idi::workcell {
 namespace {
@@ -96,10 +94,6 @@ Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& v
         (sv.cam_from_world.rotation * sv.cam_from_world.rotation.transpose() - Mat3d::Identity()).norm() > 1e-6) {
       return InvalidArgument(who + ": cam_from_world's rotation is not a rotation (inconsistent projection matrix)");
     }
-  }
-  if (!(options.adjusted_outlier_z >= 0 && std::isfinite(options.adjusted_outlier_z)) ||
-      !(options.adjusted_sigma_floor_px >= 0 && std::isfinite(options.adjusted_sigma_floor_px))) {
-    return InvalidArgument("reconstruction: adjusted_outlier_z and adjusted_sigma_floor_px must be finite and >= 0");
   }
   if (!(options.adjusted_outlier_z >= 0 && std::isfinite(options.adjusted_outlier_z)) ||
       !(options.adjusted_sigma_floor_px >= 0 && std::isfinite(options.adjusted_sigma_floor_px))) {
@@ -233,21 +227,10 @@ Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& v
                           std::hypot(std::max(vp.sigma_px, 0.02), options.adjusted_sigma_floor_px)});
         }
         const auto all = TriangulatePoint(rays);
-        const double dof = 2.0 * static_cast<double>(rays.size()) - 3.0;
-        if (!all || all->chi2 <= ChiSquareQuantile(dof, options.adjusted_outlier_z)) continue;
-        std::size_t worst = 0;
-        double best_rest = std::numeric_limits<double>::infinity();
-        for (std::size_t k = 0; k < rays.size(); ++k) {
-          std::vector<PointObservation> rest = rays;
-          rest.erase(rest.begin() + static_cast<std::ptrdiff_t>(k));
-          const auto t = TriangulatePoint(rest);
-          if (t && t->chi2 < best_rest) {
-            best_rest = t->chi2;
-            worst = k;
-          }
-        }
-        if (!std::isfinite(best_rest)) continue;
-        po.erase(po.begin() + static_cast<std::ptrdiff_t>(worst));
+        if (!all || ChiSquareConsistent(*all, rays.size(), options.adjusted_outlier_z)) continue;
+        const std::optional<LeftOut> left = LeaveOneOut(rays);
+        if (!left) continue;
+        po.erase(po.begin() + static_cast<std::ptrdiff_t>(left->index));
         ++dropped;
       }
       if (dropped > 0) {
