@@ -274,6 +274,11 @@ TEST(ScanTest, BadSetUpsAreRejected) {
   o.azimuths_deg.clear();
   EXPECT_EQ(ScanAndPick(d, twin.TrueCalibration(), o).status().code(), StatusCode::kInvalidArgument);
   o = twin.SetupOptions();
+  o.extra_azimuths_deg = {0, std::nan("")};
+  r = ScanAndPick(d, twin.TrueCalibration(), o);
+  EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(r.status().message().find("second round"), std::string::npos) << r.status().ToString();
+  o = twin.SetupOptions();
   o.table_flatness_mm = 0;
   r = ScanAndPick(d, twin.TrueCalibration(), o);
   EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
