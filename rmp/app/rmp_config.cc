@@ -254,6 +254,7 @@ Result<RmpConfig> ParseRmpConfig(const std::string& text, const std::string& sou
   top.Custom("perception", [&](const YAML::Node& n) {
     MapReader r(n, source, "perception");
     r.Number("max_range_m", &c.perception.max_range_m);
+    r.Bool("parallel_views", &c.perception.parallel_views);
     return r.Run();
   });
   top.Custom("planner", [&](const YAML::Node& n) {

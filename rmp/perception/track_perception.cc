@@ -1,13 +1,13 @@
 #include "rmp/perception/track_perception.h"
 
-#include <opencv2/imgproc.hpp>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <opencv2/imgproc.hpp>
 #include <optional>
 #include <string>
+#include <thread>
 
 #include "shared/geometry/lines.h"
 #include "shared/reconstruction/epipolar.h"
@@ -158,9 +158,28 @@ Result<PerceptionResult> TrackPerception::Process(const cv::Mat& left, const cv:
     view.cam_from_vehicle = cams[v]->vehicle_from_camera.Inverse();
     view.centre = cams[v]->vehicle_from_camera.translation;
     view.projection = MakeProjection(view.pinhole.K(), view.cam_from_vehicle);
+  }
+  // 1. Features of each image, each with its own detector: the right image on a second thread when
+  // parallel_views is set (the results do not depend on it).
+  Result<FeatureResult> detected[2] = {FeatureResult{}, FeatureResult{}};
+  auto detect = [&](int v) {
     const auto t0 = Clock::now();
-    IDI_ASSIGN_OR_RETURN(view.result, detectors_[static_cast<std::size_t>(v)]->Detect(view.gray));
+    detected[v] = detectors_[static_cast<std::size_t>(v)]->Detect(views[v].gray);
     st.features_ms[static_cast<std::size_t>(v)] = MsSince(t0);
+  };
+  if (options_.parallel_views) {
+    std::thread right_view([&] { detect(1); });
+    detect(0);
+    right_view.join();
+  } else {
+    detect(0);
+    detect(1);
+  }
+  for (int v = 0; v < 2; ++v) {
+    View& view = views[v];
+    if (!detected[v].ok())
+      return detected[v].status().WithContext(std::string("perception: the ") + (v == 0 ? "left" : "right") + " image");
+    view.result = std::move(*detected[v]);
     st.feature_stages[static_cast<std::size_t>(v)] = view.result.timing;
     view.adapted = FromFeatureResult(view.result);
     st.lines[static_cast<std::size_t>(v)] = static_cast<int>(view.adapted.features.lines.size());

@@ -51,6 +51,9 @@ struct PerceptionOptions {
   double min_line_triangulation_deg = 2.0;  // back-projected planes closer than this: no 3D line
   double max_point_reprojection_px = 1.5;
   double polarity_min_contrast = 6.0;  // grey levels; weaker edges get an unknown tape side
+  // The two images' features on two threads (the left here, the right on a helper): the same result,
+  // in about half the time on a machine with two free cores. Off: one thread.
+  bool parallel_views = true;
 
   // Features for tape on a floor: straight edges only (no active contours); the photometric
   // refinement is left out for speed (the ground geometry is limited by the plane, not by it).

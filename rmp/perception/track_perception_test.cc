@@ -113,6 +113,35 @@ TEST(TrackPerceptionTest, FindsACornerAndATapeEnd) {
   EXPECT_GT(res->stats.points_triangulated, 0);
 }
 
+// The two images' features on two threads (the default) or on one give the same observation.
+TEST(TrackPerceptionTest, TwoThreadsForTheTwoImagesGiveTheSameResultAsOne) {
+  const StereoRig rig = TestRig();
+  PerceptionOptions one;
+  one.parallel_views = false;
+  PerceptionOptions two;
+  ASSERT_TRUE(two.parallel_views);
+  auto serial = TrackPerception::Create(rig, one);
+  auto parallel = TrackPerception::Create(rig, two);
+  ASSERT_TRUE(serial.ok() && parallel.ok());
+  const std::vector<Vec2d> centre = {{-1, 0}, {1.5, 0}, {1.5, 0.8}};
+  const auto [l, r] = RenderPair(TapeScene(centre), rig, Rigid3d::Identity(), 2);
+  auto a = (*serial)->Process(l, r, 0);
+  auto b = (*parallel)->Process(l, r, 0);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(a->stats.lines, b->stats.lines);
+  EXPECT_EQ(a->stats.points, b->stats.points);
+  EXPECT_EQ(a->stats.point_matches, b->stats.point_matches);
+  ASSERT_EQ(a->observation.pieces.size(), b->observation.pieces.size());
+  ASSERT_FALSE(a->observation.pieces.empty());
+  for (std::size_t k = 0; k < a->observation.pieces.size(); ++k) {
+    EXPECT_EQ(a->observation.pieces[k].points_m, b->observation.pieces[k].points_m) << "piece " << k;
+  }
+  // A bad right image is still refused by name.
+  auto bad = (*parallel)->Process(l, cv::Mat(480, 640, CV_16UC1, cv::Scalar(0)), 0);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().message().find("right"), std::string::npos) << bad.status().ToString();
+}
+
 // An acute corner (the track turns by 135 deg): near the corner two edges run through one IDI point in
 // each image, and line matches by topology alone may pair the wrong two; the ground plane rejects
 // those, so the corner is found from every distance as it comes into view.

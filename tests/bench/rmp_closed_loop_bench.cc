@@ -8,6 +8,7 @@
 // Wall time depends on what else the machine runs; the CPU time beside it shows the work itself.
 // Run: build/<dir>/tests/bench/rmp_closed_loop_bench [--runs 3] [--rate-hz 30] [--track TRACK.yaml]
 //        [--shading-tolerance-dn T] (the renderer's interpolation of smooth shading; 0 = every pixel exactly)
+//        [--serial-perception] (the two images' features on one thread instead of two)
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <sys/resource.h>
@@ -38,8 +39,18 @@ int Main(int argc, char** argv) {
   double rate_hz = 30.0;
   std::string track_file;
   double shading_tolerance_dn = -1;
-  for (int i = 1; i + 1 < argc; i += 2) {
+  bool serial_perception = false;
+  for (int i = 1; i < argc; i += 2) {
     const std::string a = argv[i];
+    if (a == "--serial-perception") {
+      serial_perception = true;
+      --i;
+      continue;
+    }
+    if (i + 1 >= argc) {
+      fmt::print(stderr, "option {} needs a value\n", a);
+      return 2;
+    }
     if (a == "--runs") {
       runs = std::max(1, std::atoi(argv[i + 1]));
     } else if (a == "--rate-hz") {
@@ -68,8 +79,15 @@ int Main(int argc, char** argv) {
   if (o.track.speed_mps == 0) o.track.speed_mps = o.config.planner.cruise_speed_mps;
   o.config.sim.camera_rate_hz = rate_hz;
   if (shading_tolerance_dn >= 0) o.config.sim.render.shading_tolerance_dn = shading_tolerance_dn;
-  fmt::print("closed loop, {} track, cameras at {:g} Hz, shading tolerance {:g} DN, {} run(s)\n\n",
-             track_file.empty() ? "standard" : track_file, rate_hz, o.config.sim.render.shading_tolerance_dn, runs);
+  o.config.perception.parallel_views = !serial_perception;
+  fmt::print(
+      "closed loop, {} track, cameras at {:g} Hz, shading tolerance {:g} DN, features of the two images on {}, {} "
+      "run(s)\n\n",
+      track_file.empty() ? "standard" : track_file,
+      rate_hz,
+      o.config.sim.render.shading_tolerance_dn,
+      serial_perception ? "one thread" : "two threads",
+      runs);
   fmt::print("| run | completed | stereo pairs | simulated s | wall s | CPU s | speed factor (sim/wall) |\n");
   fmt::print("|---|---|---|---|---|---|---|\n");
   std::vector<double> factors;
