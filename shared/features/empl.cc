@@ -383,6 +383,8 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
   // A curved silhouette is not a line (§7.9.1): a significant quadratic in the residuals along the
   // run. Tested on every iteration's fit: a run that is curved stays curved when the line is
   // refined (growing only adds to the bend), so it is given up at once instead of refitted.
+  bool kinked = false;   // the run bends at one point: it must split (or it is not a line)
+  double curve_rss = 0;  // the quadratic's weighted residual sum of squares, from the last curved()
   const auto curved = [&]() {
     const Vec2d nn(std::cos(fit.theta), std::sin(fit.theta)), dd(-nn.y(), nn.x());
     double m[5] = {0, 0, 0, 0, 0}, b[3] = {0, 0, 0};  // sums of w t^k and of w r t^k
@@ -410,14 +412,77 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
       const double res = r - (q(0) + q(1) * t + q(2) * t * t);
       rss += wts[i] * res * res;
     }
+    curve_rss = rss;
     const double var = rss / std::max(1.0, static_cast<double>(pts.size()) - 3.0);
     const Eigen::Matrix3d inv = ata.inverse();
     const double sigma_c = std::sqrt(std::max(0.0, inv(2, 2) * var));
     const double half = 0.5 * (tmax - tmin);
     const double sagitta = std::fabs(q(2)) * half * half;
     const double radius = std::fabs(q(2)) > 0 ? 0.5 / std::fabs(q(2)) : 1e18;
-    return q.allFinite() && radius < eo.curve_max_radius_px && sagitta > eo.curve_min_sagitta_px &&
-           std::fabs(q(2)) > 5.0 * sigma_c;
+    // A run long enough for the split test below is a curve only when it bends clearly more than the
+    // disturbed ends of a straight edge do (an edge's last pixels before a junction are pulled towards
+    // the other edge); a shorter run cannot be split and is held to the stricter limit.
+    const bool splittable = pts.size() >= 2 * static_cast<std::size_t>(ho.min_length_px);
+    const double min_sagitta = splittable ? eo.curve_min_sagitta_px : std::min(eo.curve_min_sagitta_px, 0.6);
+    return q.allFinite() && radius < eo.curve_max_radius_px && sagitta > min_sagitta && std::fabs(q(2)) > 5.0 * sigma_c;
+  };
+  // The best two-piece total least squares fit of the current points (a kink: two edges that nearly
+  // line up), from prefix sums of the weighted moments; its break index 0 when the run is too short.
+  std::vector<std::array<double, 6>> pre;
+  struct TwoPiece {
+    std::size_t k = 0;   // first point of the second piece
+    double rss_all = 0;  // one line
+    double rss = 0;      // two lines
+    double dangle = 0;   // angle between the pieces (rad)
+  };
+  // Total least squares of points [a, b): its weighted residual sum of squares, and its direction.
+  const auto tls = [&](std::size_t a, std::size_t b, double* angle) {  // angle may be null
+    double m[6];
+    for (int k = 0; k < 6; ++k) {
+      m[k] = pre[b][static_cast<std::size_t>(k)] - pre[a][static_cast<std::size_t>(k)];
+    }
+    const double mx = m[1] / m[0], my = m[2] / m[0];
+    const double cxx = m[3] / m[0] - mx * mx, cxy = m[4] / m[0] - mx * my, cyy = m[5] / m[0] - my * my;
+    if (angle) {
+      *angle = 0.5 * std::atan2(2 * cxy, cxx - cyy);
+    }
+    const double tr = cxx + cyy, det = cxx * cyy - cxy * cxy;
+    const double lmin = 0.5 * tr - std::sqrt(std::max(0.0, 0.25 * tr * tr - det));
+    return std::max(0.0, lmin) * m[0];
+  };
+  const auto two_piece = [&]() {
+    TwoPiece out;
+    const std::size_t n = pts.size(), m = static_cast<std::size_t>(ho.min_length_px);
+    pre.assign(n + 1, {0, 0, 0, 0, 0, 0});
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec2d q = pts[i] - centre;
+      const double w = wts[i];
+      pre[i + 1] = {pre[i][0] + w,
+                    pre[i][1] + w * q.x(),
+                    pre[i][2] + w * q.y(),
+                    pre[i][3] + w * q.x() * q.x(),
+                    pre[i][4] + w * q.x() * q.y(),
+                    pre[i][5] + w * q.y() * q.y()};
+    }
+    if (n < 2 * m || m == 0) {
+      return out;
+    }
+    out.rss_all = tls(0, n, nullptr);
+    out.rss = out.rss_all;
+    for (std::size_t k = m; k + m <= n; ++k) {
+      const double rss = tls(0, k, nullptr) + tls(k, n, nullptr);
+      if (rss < out.rss) {
+        out.rss = rss;
+        out.k = k;
+      }
+    }
+    if (out.k > 0) {
+      double a1, a2;
+      tls(0, out.k, &a1);
+      tls(out.k, n, &a2);
+      out.dangle = std::fabs(WrapHalfPi(a1 - a2));
+    }
+    return out;
   };
   for (int iter = 0; iter < eo.max_iterations; ++iter) {
     double lo = std::max(ta - gap - 2, request.t_limit_lo);
@@ -561,7 +626,15 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
       }
     }
     if (curved()) {
-      return {};
+      // Two edges meeting at a shallow angle (a prism's ridge seen nearly end-on) bend the run as
+      // much as an arc does; the kink is told apart by two lines fitting at least as well as the
+      // quadratic. It goes on to the split below; a true curve is left to the active contours.
+      const TwoPiece kink = two_piece();
+      if (request.split_depth >= 2 || kink.k == 0 || kink.rss > curve_rss) {
+        return {};
+      }
+      kinked = true;
+      break;
     }
     const Vec2d new_normal(std::cos(fit.theta), std::sin(fit.theta));
     const double new_offset = new_normal.dot(centre) + fit.e;
@@ -599,49 +672,9 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
   // breakpoint with a two-piece total least squares fit from prefix sums of the weighted moments.
   if (request.split_depth < 2 && pts.size() >= 2 * static_cast<std::size_t>(ho.min_length_px)) {
     const std::size_t n = pts.size();
-    std::vector<std::array<double, 6>> pre(n + 1, {0, 0, 0, 0, 0, 0});
-    for (std::size_t i = 0; i < n; ++i) {
-      const Vec2d q = pts[i] - centre;
-      const double w = wts[i];
-      pre[i + 1] = {pre[i][0] + w,
-                    pre[i][1] + w * q.x(),
-                    pre[i][2] + w * q.y(),
-                    pre[i][3] + w * q.x() * q.x(),
-                    pre[i][4] + w * q.x() * q.y(),
-                    pre[i][5] + w * q.y() * q.y()};
-    }
-    auto tls = [&](std::size_t a, std::size_t b, double* angle) {  // angle may be null
-      double m[6];
-      for (int k = 0; k < 6; ++k) {
-        m[k] = pre[b][static_cast<std::size_t>(k)] - pre[a][static_cast<std::size_t>(k)];
-      }
-      const double mx = m[1] / m[0], my = m[2] / m[0];
-      const double cxx = m[3] / m[0] - mx * mx, cxy = m[4] / m[0] - mx * my, cyy = m[5] / m[0] - my * my;
-      if (angle) {
-        *angle = 0.5 * std::atan2(2 * cxy, cxx - cyy);
-      }
-      const double tr = cxx + cyy, det = cxx * cyy - cxy * cxy;
-      const double lmin = 0.5 * tr - std::sqrt(std::max(0.0, 0.25 * tr * tr - det));
-      return std::max(0.0, lmin) * m[0];
-    };
-    double a_all;
-    const double rss_all = tls(0, n, &a_all);
-    const std::size_t m = static_cast<std::size_t>(ho.min_length_px);
-    double best_rss = rss_all, best_dang = 0;
-    std::size_t best_k = 0;
-    for (std::size_t k = m; k + m <= n; ++k) {
-      const double rss = tls(0, k, nullptr) + tls(k, n, nullptr);
-      if (rss < best_rss) {
-        best_rss = rss;
-        best_k = k;
-      }
-    }
-    if (best_k > 0) {
-      double a1, a2;
-      tls(0, best_k, &a1);
-      tls(best_k, n, &a2);
-      best_dang = std::fabs(WrapHalfPi(a1 - a2));
-    }
+    const TwoPiece tp = two_piece();
+    const std::size_t best_k = tp.k;
+    const double best_rss = tp.rss, rss_all = tp.rss_all, best_dang = tp.dangle;
     const double f = best_rss > 0 ? (rss_all - best_rss) / 2.0 / (best_rss / static_cast<double>(n - 4)) : 0.0;
     if (best_k > 0 && best_dang > eo.split_angle_deg * kEmplPi / 180.0 && f > 50.0) {
       const double t_split = 0.5 * (st[idx[best_k - 1]].t + st[idx[best_k]].t);
@@ -684,6 +717,9 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
         return out;
       }
     }
+  }
+  if (kinked) {
+    return {};  // bent like a curve and no two lines explain it: not a line
   }
 
   EmplFitResult result;

@@ -178,5 +178,42 @@ TEST(EmplTest, ChessboardLinesWithAlternatingContrastAreOneLineEach) {
   EXPECT_GE(alternating, 5 + 4);
 }
 
+TEST(EmplTest, AShallowBendIsTwoLinesWithAPointNotACurve) {
+  // Above a bent edge grey 100; below it a face of 60 on the left and one of 140 on the right, split
+  // by the bisector, so the edge's contrast changes sign at the bend (as where an L-bracket's edge
+  // runs on into another face's). One run fitted across the bend bends like an arc; it must come out
+  // as two lines, each on its edge, meeting the bisector's line in one IDI point at the bend.
+  // (At 16 deg both edges' segments stop 10 px short of the bend, beyond their extensions, and no point
+  // forms: the "segment stops short" misses of features_bench D.)
+  for (const double bend_deg : {12.0, 20.0}) {
+    const double opening = kPi - bend_deg * kPi / 180;
+    const Vec2d apex(80.3, 40.6);
+    const cv::Mat faces =
+        analytic::WedgeImage(160, 90, apex.x(), apex.y(), kPi / 2, opening, 100, 60, 1.0) +
+        analytic::WedgeImage(160, 90, apex.x(), apex.y(), kPi / 2 - opening / 4, opening / 2, 0, 80, 1.0);
+    const auto r = DetectFeatures(analytic::Quantize(faces, 1.0, 7));
+    ASSERT_TRUE(r.ok());
+    EXPECT_TRUE(r->curves.empty()) << bend_deg << " deg";
+    for (const double side : {-1.0, 1.0}) {
+      // The edge from the apex, rising by half the bend on each side (image y down).
+      const double a = kPi / 2 + side * 0.5 * opening;
+      const Vec2d dir(std::cos(a), std::sin(a)), n(-dir.y(), dir.x());
+      int on_edge = 0;
+      for (const EmplLine& l : r->lines) {
+        if (std::fabs(l.normal.dot(n)) < std::cos(kPi / 180) || std::fabs(l.SignedDistance(apex + 40 * dir)) > 1)
+          continue;
+        ++on_edge;
+        double oe, ae;
+        LineErrors(l, n, n.dot(apex), apex + 40 * dir, &oe, &ae);
+        EXPECT_LT(std::fabs(oe), 0.1) << bend_deg << " deg, side " << side;
+      }
+      EXPECT_EQ(on_edge, 1) << bend_deg << " deg, side " << side;
+    }
+    double nearest = 1e9;
+    for (const IdiPoint& p : r->points) nearest = std::min(nearest, (p.xy - apex).norm());
+    EXPECT_LT(nearest, 0.5) << bend_deg << " deg";
+  }
+}
+
 }  // namespace
 }  // namespace idi

@@ -10,12 +10,8 @@
 //   E. time per 640x480 frame, single thread, against EDLines, LSD and Canny in the same run;
 //   F. IDI points against the angle between their lines (shallow junctions), and error / own sigma.
 // Usage: features_bench [--quick] [--section A|B|C|D|E|F]. Prints markdown tables.
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
-#include <opencv2/ximgproc/edge_drawing.hpp>
-
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -23,15 +19,20 @@
 #include <ctime>
 #include <functional>
 #include <map>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/ximgproc/edge_drawing.hpp>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "shared/features/features.h"
-#include "shared/geometry/lines.h"
 #include "shared/features/idi_points.h"
+#include "shared/geometry/lines.h"
 #include "shared/sim/render/render.h"
 #include "shared/sim/render/shapes.h"
+#include "tests/support/object_scenes.h"
 
 namespace idi {
 namespace {
@@ -694,46 +695,100 @@ Rigid3d LookAt(const Vec3d& eye, const Vec3d& target) {
 
 // ---- D: object scenes ----------------------------------------------------------------------------
 
-sim::Scene ObjectScene(std::mt19937& rng, bool clutter) {
-  std::uniform_real_distribution<double> u(0, 1);
-  sim::Scene s;
-  s.lighting.ambient = 0.35;
-  s.lighting.directional = {{Vec3d(0.4, -0.3, 1.0), 0.55}, {Vec3d(-0.6, 0.5, 0.6), 0.25}};
-  sim::Material table = sim::Gray(0.35);
-  sim::Material wall = sim::Gray(0.55);
-  if (clutter) {
-    table.texture.noise_amplitude = 0.25;
-    table.texture.noise_scale = 40;
-    wall.texture.noise_amplitude = 0.3;
-    wall.texture.noise_scale = 120;
-  }
-  s.solids.push_back(sim::MakeRectangle("table", Vec3d(0, 0, 0), Vec3d::UnitX(), Vec3d::UnitY(), 2000, 2000, table));
-  s.solids.push_back(sim::MakeRectangle("wall", Vec3d(0, 900, 600), Vec3d::UnitX(), Vec3d::UnitZ(), 2000, 600, wall));
-  const int n = 3 + static_cast<int>(u(rng) * 3);
-  for (int k = 0; k < n; ++k) {
-    const Rigid3d pose = Translation(-350 + 700 * u(rng), -250 + 500 * u(rng), 0.0) * RotZ(u(rng) * kPi);
-    const double alb = 0.5 + 0.45 * u(rng);
-    const std::vector<sim::Material> faces = {sim::Gray(alb), sim::Gray(alb * 0.9), sim::Gray(alb), sim::Gray(alb * 0.8),
-                                              sim::Gray(alb * 0.85), sim::Gray(alb * 0.95)};
-    const int kind = static_cast<int>(u(rng) * 3);
-    if (kind == 0) {
-      s.solids.push_back(sim::MakeBox("box" + std::to_string(k), pose, Vec3d(120 + 100 * u(rng), 100 + 80 * u(rng), 60 + 80 * u(rng)),
-                                      sim::Gray(alb), faces));
-    } else if (kind == 1) {
-      s.solids.push_back(sim::MakeTriangularPrism("prism" + std::to_string(k), pose, 150, 90, 160, 20 * (u(rng) - 0.5),
-                                                  sim::Gray(alb)));
-    } else {
-      s.solids.push_back(sim::MakeLBracket("bracket" + std::to_string(k), pose, 160, 110, 120, 25, sim::Gray(alb)));
+// FEATURES_BENCH_VERBOSE: each long line's offset error, each missed corner with its lines (found or
+// not, and how far the found segment stops from the corner), each spurious point with its lines.
+void PrintCornerDetails(const sim::GroundTruth& truth,
+                        const FeatureResult& r,
+                        const std::function<Vec2d(const Vec2d&)>& to_fit,
+                        bool line_offsets) {
+  std::map<int, const sim::TruthLine*> lines;
+  for (const sim::TruthLine& l : truth.lines) lines[l.id] = &l;
+  if (line_offsets) {
+    for (const sim::TruthLine& tl : truth.lines) {
+      if (tl.length_px < 60 || std::fabs(tl.contrast_dn) < 20) continue;
+      if (const EmplLine* l = test::MatchTruthLine(r, tl.normal, tl.p1_px, tl.p2_px)) {
+        const Vec2d mid = 0.5 * (tl.p1_px + tl.p2_px);
+        std::printf("  line %s len %.0f contrast %.0f: offset diff at mid %+.3f px\n",
+                    tl.object.c_str(),
+                    tl.length_px,
+                    tl.contrast_dn,
+                    l->SignedDistance(mid) * (l->normal.dot(tl.normal) > 0 ? -1 : 1));
+      }
     }
   }
-  return s;
+  std::vector<Vec2d> all_junctions;
+  for (const sim::TruthJunction& j : truth.junctions) all_junctions.push_back(to_fit(j.xy_px));
+  for (const sim::TruthJunction& j : truth.junctions) {
+    if (!j.is_vertex || j.type == "tangent") continue;
+    int good = 0;
+    for (int id : j.lines) {
+      auto it = lines.find(id);
+      if (it != lines.end() && test::CountsForCorners(*it->second)) ++good;
+    }
+    if (good < 2) continue;
+    const Vec2d t = to_fit(j.xy_px);
+    double bd = 2.0;
+    for (const IdiPoint& p : r.points) bd = std::min(bd, (p.xy - t).norm());
+    if (bd < 2.0) continue;
+    std::printf("  missed %s corner of %s at %.1f,%.1f; lines:", j.type.c_str(), j.object.c_str(), t.x(), t.y());
+    for (int id : j.lines) {
+      auto it = lines.find(id);
+      if (it == lines.end()) continue;
+      const sim::TruthLine& tl = *it->second;
+      std::printf(" [%.0f px, %.0f DN", tl.length_px, tl.contrast_dn);
+      // Which EMPL line explains it, and how far its confirmed segment stops from the corner (negative: it
+      // reaches past it), with its extensions.
+      if (const EmplLine* l = test::MatchTruthLine(r, tl.normal, to_fit(tl.p1_px), to_fit(tl.p2_px))) {
+        const double s = l->Direction().dot(t - l->p1), len = l->length_px;
+        const double gap = s < 0 ? -s : (s > len ? s - len : -std::min(s, len - s));
+        std::printf(": line %d, %.1f px off, segment gap %+.1f, ext %.0f/%.0f",
+                    l->id,
+                    std::fabs(l->SignedDistance(t)),
+                    gap,
+                    (l->extension1 - l->p1).norm(),
+                    (l->extension2 - l->p2).norm());
+      } else {
+        std::printf(": no line");
+      }
+      std::printf("]");
+    }
+    std::printf("\n");
+  }
+  for (const IdiPoint& p : r.points) {
+    double bd = 1e9;
+    for (const Vec2d& t : all_junctions) bd = std::min(bd, (p.xy - t).norm());
+    if (bd <= 3.0) continue;
+    std::printf("  spurious point at %.1f,%.1f (%zu lines, nearest junction %.1f px)",
+                p.xy.x(),
+                p.xy.y(),
+                p.line_ids.size(),
+                bd);
+    for (int id : p.line_ids) {
+      for (const EmplLine& l : r.lines) {
+        if (l.id == id) {
+          std::printf(" [line %d: %.0f px, %.0f DN, beyond %.1f, rms %.2f]",
+                      id,
+                      l.length_px,
+                      l.contrast,
+                      DistanceBeyondSegment(l, p.xy),
+                      l.fit_rms_px);
+        }
+      }
+    }
+    std::printf("%s\n", p.kind == IdiPointKind::kCurveLine ? " (curve)" : "");
+  }
 }
 
 void SectionD(bool quick) {
   std::printf("\n## D. Corners of the twin's object scenes (boxes, prisms, L-brackets on a table before a wall), 640x480\n\n");
-  std::printf("True corners: projected 3D vertices (junction types L, Y, arrow, multi) whose meeting lines are visible over\n");
-  std::printf(">= 20 px with >= 10 DN contrast; found = an IDI point within 2 px. Spurious = IDI points farther than 3 px\n");
-  std::printf("from every true junction of any type (occlusion T-junctions count as real image junctions).\n\n");
+  std::printf(
+      "True corners: projected 3D vertices (junction types L, Y, arrow, multi) where two of the meeting lines are\n");
+  std::printf(
+      "visible over >= 20 px with >= 10 DN contrast; found = an IDI point within 2 px. Spurious = IDI points "
+      "farther\n");
+  std::printf(
+      "than 3 px from every true junction of any type (occlusion T-junctions count as real image junctions).\n");
+  std::printf("(tests/support/object_scenes.h; FEATURES_BENCH_VERBOSE=1 lists every miss and spurious point.)\n\n");
   std::printf("| scenes | clutter | distortion | sigma_b | true corners | found | rate | IDI points | spurious | spurious rate | RMS px |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
   struct Cfg {
@@ -741,8 +796,11 @@ void SectionD(bool quick) {
     double blur;
   };
   const std::vector<Cfg> cfgs = {{false, false, 1}, {true, false, 1}, {true, true, 1}, {true, false, 2}};
+  std::vector<test::CornerScore> scores(cfgs.size());
+  const bool verbose = std::getenv("FEATURES_BENCH_VERBOSE") != nullptr;
   const int scenes = quick ? 3 : 12;
-  for (const Cfg& c : cfgs) {
+  for (std::size_t ci = 0; ci < cfgs.size(); ++ci) {
+    const Cfg& c = cfgs[ci];
     CameraModel cam;
     cam.width = 640;
     cam.height = 480;
@@ -752,11 +810,9 @@ void SectionD(bool quick) {
       cam.params[kK2] = 0.05;
     }
     auto det = FeatureDetector::Create(FeatureOptions{}, c.distortion ? std::optional<CameraModel>(cam) : std::nullopt);
-    int total = 0, found = 0, points = 0, spurious = 0;
-    Stats err;
     std::mt19937 rng(c.clutter * 10 + c.distortion * 100 + static_cast<unsigned>(c.blur));
     for (int k = 0; k < scenes; ++k) {
-      const sim::Scene scene = ObjectScene(rng, c.clutter);
+      const sim::Scene scene = test::RandomObjectScene(rng, c.clutter);
       // Camera 1.2 m away, looking down at 40 deg.
       const double az = 0.3 * (k % 5) - 0.6;
       const Rigid3d cam_from_world = LookAt(Vec3d(1100 * std::sin(az), -1100 * std::cos(az), 950), Vec3d(0, 0, 60));
@@ -771,63 +827,45 @@ void SectionD(bool quick) {
       }
       auto r = det->Detect(*img);
       if (!r.ok()) continue;
-      std::map<int, const sim::TruthLine*> lines;
-      for (const sim::TruthLine& l : truth.lines) lines[l.id] = &l;
       // Truth in the coordinates the detector reports (undistorted when distortion is modelled).
       auto to_fit = [&](const Vec2d& px) { return c.distortion ? UndistortPixel(cam, px) : px; };
-      if (std::getenv("FEATURES_BENCH_VERBOSE") && !c.distortion) {
-        for (const sim::TruthLine& tl : truth.lines) {
-          if (tl.length_px < 60 || std::fabs(tl.contrast_dn) < 20) continue;
-          const TrueLine t{tl.normal, tl.offset, tl.p1_px, tl.p2_px};
-          if (const EmplLine* l = MatchLine(*r, t)) {
-            const Vec2d mid = 0.5 * (tl.p1_px + tl.p2_px);
-            std::printf("  line %s len %.0f contrast %.0f: offset diff at mid %+.3f px\n", tl.object.c_str(), tl.length_px,
-                        tl.contrast_dn, l->SignedDistance(mid) * (l->normal.dot(tl.normal) > 0 ? -1 : 1));
-          }
-        }
-      }
-      std::vector<Vec2d> all_junctions;
-      for (const sim::TruthJunction& j : truth.junctions) all_junctions.push_back(to_fit(j.xy_px));
-      for (const sim::TruthJunction& j : truth.junctions) {
-        if (!j.is_vertex || j.type == "tangent") continue;
-        int good = 0;
-        for (int id : j.lines) {
-          auto it = lines.find(id);
-          if (it != lines.end() && it->second->length_px >= 20 && std::fabs(it->second->contrast_dn) >= 10) ++good;
-        }
-        if (good < 2) continue;
-        ++total;
-        const Vec2d t = to_fit(j.xy_px);
-        double bd = 2.0;
-        for (const IdiPoint& p : r->points) bd = std::min(bd, (p.xy - t).norm());
-        if (bd < 2.0) {
-          ++found;
-          err.Add(bd);
-        } else if (std::getenv("FEATURES_BENCH_VERBOSE")) {
-          std::printf("  missed %s corner of %s at %.1f,%.1f (nearest IDI point %.2f px); lines:", j.type.c_str(),
-                      j.object.c_str(), t.x(), t.y(), bd);
-          for (int id : j.lines) {
-            auto it = lines.find(id);
-            if (it != lines.end()) std::printf(" [%.0f px, %.0f DN]", it->second->length_px, it->second->contrast_dn);
-          }
-          std::printf("\n");
-        }
-      }
-      for (const IdiPoint& p : r->points) {
-        ++points;
-        double bd = 1e9;
-        for (const Vec2d& t : all_junctions) bd = std::min(bd, (p.xy - t).norm());
-        spurious += bd > 3.0 ? 1 : 0;
-        if (bd > 3.0 && std::getenv("FEATURES_BENCH_VERBOSE")) {
-          std::printf("  spurious point at %.1f,%.1f (%zu lines, nearest junction %.1f px)\n", p.xy.x(), p.xy.y(),
-                      p.line_ids.size(), bd);
-        }
-      }
+      scores[ci].Add(test::ScoreCorners(truth, *r, to_fit));
+      if (verbose) PrintCornerDetails(truth, *r, to_fit, !c.distortion);
     }
-    std::printf("| %d | %s | %s | %.0f | %d | %d | %.3f | %d | %d | %.3f | %.3f |\n", scenes, c.clutter ? "texture" : "none",
-                c.distortion ? "k1 -0.18" : "none", c.blur, total, found, total ? static_cast<double>(found) / total : NAN,
-                points, spurious, points ? static_cast<double>(spurious) / points : NAN, err.Rms());
+    const test::CornerScore& sc = scores[ci];
+    Stats err;
+    for (const double e : sc.errors_px) err.Add(e);
+    std::printf("| %d | %s | %s | %.0f | %d | %d | %.3f | %d | %d | %.3f | %.3f |\n",
+                scenes,
+                c.clutter ? "texture" : "none",
+                c.distortion ? "k1 -0.18" : "none",
+                c.blur,
+                sc.total,
+                sc.found,
+                sc.total ? static_cast<double>(sc.found) / sc.total : NAN,
+                sc.points,
+                sc.spurious,
+                sc.points ? static_cast<double>(sc.spurious) / sc.points : NAN,
+                err.Rms());
     std::fflush(stdout);
+  }
+  std::printf(
+      "\nWhy corners were missed: fewer than two of their lines found (a line within 2 deg and 2 px at its middle),\n");
+  std::printf(
+      "or found but fewer than two confirmed segments reach the corner within their extensions, or neither.\n\n");
+  std::printf(
+      "| clutter | distortion | sigma_b | missed | line not found | segment stops short | other "
+      "|\n|---|---|---|---|---|---|---|\n");
+  for (std::size_t k = 0; k < cfgs.size(); ++k) {
+    const test::CornerScore& m = scores[k];
+    std::printf("| %s | %s | %.0f | %d | %d | %d | %d |\n",
+                cfgs[k].clutter ? "texture" : "none",
+                cfgs[k].distortion ? "k1 -0.18" : "none",
+                cfgs[k].blur,
+                m.total - m.found,
+                m.miss_line_not_found,
+                m.miss_segment_short,
+                m.miss_other);
   }
 }
 
@@ -848,7 +886,8 @@ void SectionE(bool quick) {
   {
     sim::RenderOptions o;
     o.seed = 5;
-    auto img = sim::RenderScene(ObjectScene(rng, true), cam, LookAt(Vec3d(0, -1100, 950), Vec3d(0, 0, 60)), o);
+    auto img =
+        sim::RenderScene(test::RandomObjectScene(rng, true), cam, LookAt(Vec3d(0, -1100, 950), Vec3d(0, 0, 60)), o);
     if (img.ok()) frames.push_back({"object scene with clutter", *img});
   }
   const int runs = quick ? 10 : 40;

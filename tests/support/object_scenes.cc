@@ -1,0 +1,131 @@
+#include "tests/support/object_scenes.h"
+
+#include <cmath>
+#include <map>
+#include <string>
+
+#include "shared/features/idi_points.h"
+#include "shared/sim/render/shapes.h"
+
+namespace idi::test {
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+}  // namespace
+
+sim::Scene RandomObjectScene(std::mt19937& rng, bool clutter) {
+  std::uniform_real_distribution<double> u(0, 1);
+  sim::Scene s;
+  s.lighting.ambient = 0.35;
+  s.lighting.directional = {{Vec3d(0.4, -0.3, 1.0), 0.55}, {Vec3d(-0.6, 0.5, 0.6), 0.25}};
+  sim::Material table = sim::Gray(0.35);
+  sim::Material wall = sim::Gray(0.55);
+  if (clutter) {
+    table.texture.noise_amplitude = 0.25;
+    table.texture.noise_scale = 40;
+    wall.texture.noise_amplitude = 0.3;
+    wall.texture.noise_scale = 120;
+  }
+  s.solids.push_back(sim::MakeRectangle("table", Vec3d(0, 0, 0), Vec3d::UnitX(), Vec3d::UnitY(), 2000, 2000, table));
+  s.solids.push_back(sim::MakeRectangle("wall", Vec3d(0, 900, 600), Vec3d::UnitX(), Vec3d::UnitZ(), 2000, 600, wall));
+  const int n = 3 + static_cast<int>(u(rng) * 3);
+  for (int k = 0; k < n; ++k) {
+    const Rigid3d pose = Translation(-350 + 700 * u(rng), -250 + 500 * u(rng), 0.0) * RotZ(u(rng) * kPi);
+    const double alb = 0.5 + 0.45 * u(rng);
+    const std::vector<sim::Material> faces = {sim::Gray(alb),
+                                              sim::Gray(alb * 0.9),
+                                              sim::Gray(alb),
+                                              sim::Gray(alb * 0.8),
+                                              sim::Gray(alb * 0.85),
+                                              sim::Gray(alb * 0.95)};
+    const int kind = static_cast<int>(u(rng) * 3);
+    if (kind == 0) {
+      s.solids.push_back(sim::MakeBox("box" + std::to_string(k),
+                                      pose,
+                                      Vec3d(120 + 100 * u(rng), 100 + 80 * u(rng), 60 + 80 * u(rng)),
+                                      sim::Gray(alb),
+                                      faces));
+    } else if (kind == 1) {
+      s.solids.push_back(sim::MakeTriangularPrism(
+          "prism" + std::to_string(k), pose, 150, 90, 160, 20 * (u(rng) - 0.5), sim::Gray(alb)));
+    } else {
+      s.solids.push_back(sim::MakeLBracket("bracket" + std::to_string(k), pose, 160, 110, 120, 25, sim::Gray(alb)));
+    }
+  }
+  return s;
+}
+
+void CornerScore::Add(const CornerScore& o) {
+  total += o.total;
+  found += o.found;
+  points += o.points;
+  spurious += o.spurious;
+  miss_line_not_found += o.miss_line_not_found;
+  miss_segment_short += o.miss_segment_short;
+  miss_other += o.miss_other;
+  errors_px.insert(errors_px.end(), o.errors_px.begin(), o.errors_px.end());
+}
+
+bool CountsForCorners(const sim::TruthLine& line) { return line.length_px >= 20 && std::fabs(line.contrast_dn) >= 10; }
+
+const EmplLine* MatchTruthLine(const FeatureResult& result, const Vec2d& normal, const Vec2d& a, const Vec2d& b) {
+  const Vec2d mid = 0.5 * (a + b);
+  const EmplLine* best = nullptr;
+  double best_d = 2.0;
+  for (const EmplLine& l : result.lines) {
+    if (std::fabs(l.normal.dot(normal)) < std::cos(2 * kPi / 180)) continue;
+    const double d = std::fabs(l.SignedDistance(mid));
+    if (d < best_d) {
+      best_d = d;
+      best = &l;
+    }
+  }
+  return best;
+}
+
+CornerScore ScoreCorners(const sim::GroundTruth& truth,
+                         const FeatureResult& result,
+                         const std::function<Vec2d(const Vec2d&)>& to_fit) {
+  CornerScore s;
+  std::map<int, const sim::TruthLine*> lines;
+  for (const sim::TruthLine& l : truth.lines) lines[l.id] = &l;
+  for (const sim::TruthJunction& j : truth.junctions) {
+    if (!j.is_vertex || j.type == "tangent") continue;
+    int good = 0;
+    for (int id : j.lines) {
+      auto it = lines.find(id);
+      if (it != lines.end() && CountsForCorners(*it->second)) ++good;
+    }
+    if (good < 2) continue;
+    ++s.total;
+    const Vec2d t = to_fit(j.xy_px);
+    double bd = 2.0;
+    for (const IdiPoint& p : result.points) bd = std::min(bd, (p.xy - t).norm());
+    if (bd < 2.0) {
+      ++s.found;
+      s.errors_px.push_back(bd);
+      continue;
+    }
+    int matched = 0, reaching = 0;
+    for (int id : j.lines) {
+      auto it = lines.find(id);
+      if (it == lines.end() || !CountsForCorners(*it->second)) continue;
+      const sim::TruthLine& tl = *it->second;
+      if (const EmplLine* l = MatchTruthLine(result, tl.normal, to_fit(tl.p1_px), to_fit(tl.p2_px))) {
+        ++matched;
+        reaching += DistanceBeyondSegment(*l, t) <= (l->extension1 - l->p1).norm() ? 1 : 0;
+      }
+    }
+    ++(matched < 2 ? s.miss_line_not_found : reaching < 2 ? s.miss_segment_short : s.miss_other);
+  }
+  std::vector<Vec2d> junctions;
+  for (const sim::TruthJunction& j : truth.junctions) junctions.push_back(to_fit(j.xy_px));
+  for (const IdiPoint& p : result.points) {
+    ++s.points;
+    double bd = 1e9;
+    for (const Vec2d& t : junctions) bd = std::min(bd, (p.xy - t).norm());
+    s.spurious += bd > 3.0 ? 1 : 0;
+  }
+  return s;
+}
+
+}  // namespace idi::test

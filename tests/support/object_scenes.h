@@ -1,0 +1,44 @@
+// The twin's object scenes for the vision front end's corner statistics (issue 4): three to five boxes,
+// triangular prisms and L-brackets on a table before a wall, and the score of IDI points against their
+// rendered ground truth. Shared by features_bench (section D) and the integration test that guards it.
+#pragma once
+
+#include <functional>
+#include <random>
+#include <vector>
+
+#include "shared/features/features.h"
+#include "shared/sim/render/render.h"
+
+namespace idi::test {
+
+// A random scene (the same for the same generator state). `clutter`: value-noise texture on the table
+// and the wall. Scene units are mm; the objects stand within 350 mm of the origin.
+sim::Scene RandomObjectScene(std::mt19937& rng, bool clutter);
+
+// IDI points of one image against its ground truth.
+//  - True corners: projected 3D vertices (junction types L, Y, arrow, multi) where at least two of the
+//    meeting lines are visible over >= 20 px with >= 10 DN contrast. Found: an IDI point within 2 px.
+//  - Spurious: IDI points farther than 3 px from every true junction of any type (occlusion
+//    T-junctions are real image junctions).
+//  - A missed corner's cause: fewer than two of its lines found (a line within 2 deg of the true one
+//    and 2 px of its middle); or found, but fewer than two confirmed segments reach the corner within
+//    their extensions; or other.
+struct CornerScore {
+  int total = 0, found = 0, points = 0, spurious = 0;
+  int miss_line_not_found = 0, miss_segment_short = 0, miss_other = 0;
+  std::vector<double> errors_px;  // of the found corners
+
+  void Add(const CornerScore& o);
+};
+// `to_fit` maps truth pixels into the detector's coordinates (undistorted when it models distortion).
+CornerScore ScoreCorners(const sim::GroundTruth& truth,
+                         const FeatureResult& result,
+                         const std::function<Vec2d(const Vec2d&)>& to_fit);
+
+// Whether a true line counts for a corner (visible over >= 20 px with >= 10 DN contrast).
+bool CountsForCorners(const sim::TruthLine& line);
+// The detected line that explains a true one (within 2 deg, and 2 px at the true segment's middle), if any.
+const EmplLine* MatchTruthLine(const FeatureResult& result, const Vec2d& normal, const Vec2d& a, const Vec2d& b);
+
+}  // namespace idi::test
