@@ -176,6 +176,9 @@ TEST(DetectorTest, BadInputAndBadOptionsAreRejected) {
   o = FeatureOptions{};
   o.empl.max_extension_px = 1;
   EXPECT_FALSE(o.Check().ok());
+  o = FeatureOptions{};
+  o.empl.curve_min_sagitta_short_px = -0.1;
+  EXPECT_NE(o.Check().message().find("empl.curve_min_sagitta_short_px"), std::string::npos) << o.Check().message();
   CameraModel cam;
   cam.params[kK1] = 0.1;
   auto det = FeatureDetector::Create(FeatureOptions{}, cam);

@@ -420,10 +420,9 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
     const double sagitta = std::fabs(q(2)) * half * half;
     const double radius = std::fabs(q(2)) > 0 ? 0.5 / std::fabs(q(2)) : 1e18;
     // A run long enough for the split test below is a curve only when it bends clearly more than the
-    // disturbed ends of a straight edge do (an edge's last pixels before a junction are pulled towards
-    // the other edge); a shorter run cannot be split and is held to the stricter limit.
+    // disturbed ends of a straight edge do (see EmplOptions::curve_min_sagitta_px).
     const bool splittable = pts.size() >= 2 * static_cast<std::size_t>(ho.min_length_px);
-    const double min_sagitta = splittable ? eo.curve_min_sagitta_px : std::min(eo.curve_min_sagitta_px, 0.6);
+    const double min_sagitta = splittable ? eo.curve_min_sagitta_px : eo.curve_min_sagitta_short_px;
     return q.allFinite() && radius < eo.curve_max_radius_px && sagitta > min_sagitta && std::fabs(q(2)) > 5.0 * sigma_c;
   };
   // The best two-piece total least squares fit of the current points (a kink: two edges that nearly

@@ -106,12 +106,14 @@ struct EmplOptions {
   double split_angle_deg = 1.5;
   // A segment whose edge points bend with a radius below curve_max_radius_px and a sagitta above
   // curve_min_sagitta_px (and 5 sigma) is a curve, not a line: it is left to the active contours. A run
-  // long enough to be split in two is first tested as a kink (two lines fitting at least as well as the
-  // quadratic), and split; a shorter one is held to a sagitta of 0.6 px at most. On the twin's object
-  // scenes 1.5 px instead of 0.6 found 5 more of 196 corners and 6 fewer spurious points (with the
-  // kink test): the last pixels of a straight edge before a junction are pulled towards the other edge.
+  // long enough to be split in two (2 x HoughOptions::min_length_px points) is first tested as a kink
+  // (two lines fitting at least as well as the quadratic), and split. A shorter run cannot be split and
+  // is a curve above curve_min_sagitta_short_px. On the twin's object scenes 1.5 px instead of 0.6 for
+  // long runs found 5 more of 196 corners and 6 fewer spurious points (with the kink test): the last
+  // pixels of a straight edge before a junction are pulled towards the other edge.
   double curve_max_radius_px = 250.0;
   double curve_min_sagitta_px = 1.5;
+  double curve_min_sagitta_short_px = 0.6;
   // Unconfirmed extension beyond each confirmed end (§8.8.2): fraction of the length, clamped.
   double extension_fraction = 0.1;
   double min_extension_px = 4.0;
