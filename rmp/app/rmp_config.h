@@ -8,7 +8,7 @@
 //   rig:      {left: {fx_px, fy_px, cx_px, cy_px, k1, k2, p1, p2, k3, x_m, y_m, z_m, yaw_deg, pitch_down_deg},
 //              right: {...}, width_px, height_px}          the fixed cameras' calibration
 //   tape:     {width_m, brighter}
-//   perception: {max_range_m}
+//   perception: {max_range_m, parallel_views (the two images on two threads, default true; same result)}
 //   planner:  {cruise_speed_mps, max_speed_mps, max_accel_mps2, max_decel_mps2, max_yaw_rate_rps,
 //              max_yaw_accel_rps2, max_lateral_accel_mps2, corner_cut_m, max_corner_cut_m,
 //              command_latency_s, response_time_constant_s, keep_track_in_view}

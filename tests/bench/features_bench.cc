@@ -138,20 +138,7 @@ TrueLine LineThroughPts(const Vec2d& a, const Vec2d& b) {
 }
 
 // Detected EMPL line matching a true one (angle within 2 deg, within 2 px at the true midpoint).
-const EmplLine* MatchLine(const FeatureResult& r, const TrueLine& t) {
-  const Vec2d mid = 0.5 * (t.a + t.b);
-  const EmplLine* best = nullptr;
-  double best_d = 2.0;
-  for (const EmplLine& l : r.lines) {
-    if (std::fabs(l.normal.dot(t.n)) < std::cos(2 * kPi / 180)) continue;
-    const double d = std::fabs(l.SignedDistance(mid));
-    if (d < best_d) {
-      best_d = d;
-      best = &l;
-    }
-  }
-  return best;
-}
+const EmplLine* MatchLine(const FeatureResult& r, const TrueLine& t) { return test::MatchTruthLine(r, t.n, t.a, t.b); }
 
 // LSD segments as lines: the segments within 2 px and 2 deg of a true line, refitted together
 // (total least squares through their end points, weighted by length).
