@@ -64,6 +64,18 @@ void HoughLineFinder::Vote(int index, int delta) {
   }
 }
 
+bool HoughLineFinder::AnyEdgeBlock(int x0, int y0, int x1, int y1) const {
+  const int bx0 = std::max(0, x0 >> kBlockShift), by0 = std::max(0, y0 >> kBlockShift);
+  const int bx1 = std::min(block_cols_ - 1, x1 >> kBlockShift), by1 = std::min(block_rows_ - 1, y1 >> kBlockShift);
+  for (int by = by0; by <= by1; ++by) {
+    const std::uint8_t* row = &blocks_[static_cast<std::size_t>(by) * static_cast<std::size_t>(block_cols_)];
+    for (int bx = bx0; bx <= bx1; ++bx) {
+      if (row[bx] != 0) return true;
+    }
+  }
+  return false;
+}
+
 void HoughLineFinder::Walk(const GradientImages& g, const EdgeMap& edges, const PixelGeometry& geometry,
                            const Vec2d& normal, double offset, double t_min, double t_max, std::vector<Hit>* hits) {
   hits->clear();
@@ -74,33 +86,51 @@ void HoughLineFinder::Walk(const GradientImages& g, const EdgeMap& edges, const 
   const bool horizontal = std::fabs(dir.x()) >= std::fabs(dir.y());
   const double step = geometry.identity() ? 1.0 : 0.8;
   const int reach = static_cast<int>(std::ceil(options_.band_px));
-  for (double t = t_min; t <= t_max; t += step) {
-    const Vec2d q = geometry.ToPixel(foot + t * dir);
-    const int qx = RoundToInt(q.x()), qy = RoundToInt(q.y());
-    for (int k = -reach; k <= reach; ++k) {
-      const int px = horizontal ? qx : qx + k;
-      const int py = horizontal ? qy + k : qy;
-      if (px < 0 || py < 0 || px >= w || py >= h) {
-        continue;
+  // The line is walked in chunks of kChunk steps; a chunk whose band (with a margin for rounding and
+  // for the bend of a distorted line over a few pixels) lies in empty blocks is stepped over. The
+  // steps themselves are the same as without the skip, so are the hits.
+  constexpr int kChunk = 8;
+  const int margin = reach + 2;
+  double t = t_min;
+  while (t <= t_max) {
+    const Vec2d qa = geometry.ToPixel(foot + t * dir);
+    const Vec2d qb = geometry.ToPixel(foot + std::min(t_max, t + (kChunk - 1) * step) * dir);
+    const int x0 = static_cast<int>(std::floor(std::min(qa.x(), qb.x()))) - margin;
+    const int y0 = static_cast<int>(std::floor(std::min(qa.y(), qb.y()))) - margin;
+    const int x1 = static_cast<int>(std::ceil(std::max(qa.x(), qb.x()))) + margin;
+    const int y1 = static_cast<int>(std::ceil(std::max(qa.y(), qb.y()))) + margin;
+    if (!AnyEdgeBlock(x0, y0, x1, y1)) {
+      for (int c = 0; c < kChunk && t <= t_max; ++c) t += step;
+      continue;
+    }
+    for (int c = 0; c < kChunk && t <= t_max; ++c, t += step) {
+      const Vec2d q = geometry.ToPixel(foot + t * dir);
+      const int qx = RoundToInt(q.x()), qy = RoundToInt(q.y());
+      for (int k = -reach; k <= reach; ++k) {
+        const int px = horizontal ? qx : qx + k;
+        const int py = horizontal ? qy + k : qy;
+        if (px < 0 || py < 0 || px >= w || py >= h) {
+          continue;
+        }
+        if (edges.mask.at<std::uint8_t>(py, px) != 1) {
+          continue;  // not an edge, or claimed by a stronger peak (marked 2)
+        }
+        int& visit = visit_.at<int>(py, px);
+        if (visit == walk_id_) {
+          continue;
+        }
+        visit = walk_id_;
+        const Vec2d u = geometry.ToFit(px, py);
+        if (std::fabs(normal.dot(u) - offset) > options_.band_px) {
+          continue;
+        }
+        const double gxv = g.gx.at<float>(py, px), gyv = g.gy.at<float>(py, px);
+        const double gn = std::fabs(gxv * normal.x() + gyv * normal.y());
+        if (gn < cos_tol_ * std::sqrt(gxv * gxv + gyv * gyv)) {
+          continue;
+        }
+        hits->push_back({dir.dot(u - foot), index_.at<int>(py, px)});
       }
-      if (edges.mask.at<std::uint8_t>(py, px) != 1) {
-        continue;  // not an edge, or claimed by a stronger peak (marked 2)
-      }
-      int& visit = visit_.at<int>(py, px);
-      if (visit == walk_id_) {
-        continue;
-      }
-      visit = walk_id_;
-      const Vec2d u = geometry.ToFit(px, py);
-      if (std::fabs(normal.dot(u) - offset) > options_.band_px) {
-        continue;
-      }
-      const double gxv = g.gx.at<float>(py, px), gyv = g.gy.at<float>(py, px);
-      const double gn = std::fabs(gxv * normal.x() + gyv * normal.y());
-      if (gn < cos_tol_ * std::sqrt(gxv * gxv + gyv * gyv)) {
-        continue;
-      }
-      hits->push_back({dir.dot(u - foot), index_.at<int>(py, px)});
     }
   }
   std::sort(hits->begin(), hits->end(), [](const Hit& a, const Hit& b) { return a.t < b.t; });
@@ -186,6 +216,9 @@ std::vector<HoughSegment> HoughLineFinder::Find(const GradientImages& g, EdgeMap
 
   // Votes of each edge pixel, restricted to +-window around its gradient direction.
   const std::size_t n = edges->pixels.size();
+  block_cols_ = (w + (1 << kBlockShift) - 1) >> kBlockShift;
+  block_rows_ = (h + (1 << kBlockShift) - 1) >> kBlockShift;
+  blocks_.assign(static_cast<std::size_t>(block_cols_) * static_cast<std::size_t>(block_rows_), 0);
   ex_.resize(n);
   ey_.resize(n);
   bin_.resize(n);
@@ -200,6 +233,8 @@ std::vector<HoughSegment> HoughLineFinder::Find(const GradientImages& g, EdgeMap
     }
     bin_[i] = std::min(n_theta_ - 1, static_cast<int>(angle / theta_step));
     index_.at<int>(p) = static_cast<int>(i);
+    blocks_[static_cast<std::size_t>(p.y >> kBlockShift) * static_cast<std::size_t>(block_cols_) +
+            static_cast<std::size_t>(p.x >> kBlockShift)] = 1;
     Vote(static_cast<int>(i), +1);
   }
 

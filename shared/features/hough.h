@@ -49,6 +49,12 @@ class HoughLineFinder {
   std::vector<int> bin_;
   cv::Mat index_;  // CV_32S: edge index of each pixel, -1 elsewhere
   cv::Mat visit_;  // CV_32S: last walk that looked at the pixel
+  // Which 8 x 8 blocks of the image hold an edge pixel: a walk steps over the stretches of its line
+  // whose band crosses only empty blocks.
+  static constexpr int kBlockShift = 3;
+  std::vector<std::uint8_t> blocks_;
+  int block_cols_ = 0, block_rows_ = 0;
+  bool AnyEdgeBlock(int x0, int y0, int x1, int y1) const;
   int walk_id_ = 0;
   double cos_tol_ = 0;
 };
