@@ -185,14 +185,15 @@ TEST(ScanTest, SecondRoundOfStationsWhenNoGraspFitsTheModel) {
   EXPECT_EQ(without.status().code(), StatusCode::kNotFound) << without.status().ToString();
 }
 
-// In this scene (seed 77, box 20) one bottom corner's IDI point in one view is 0.77 px off with a claimed
-// sigma of 0.06 px, and the adjustment followed it (the corner 0.53 mm off). With the views adjusted, the
-// corner's five observations fail the chi-square test; that one is dropped and the corner comes back.
+// In this scene (seed 77, box 32) observations that the adjustment followed leave a corner 0.70 mm off.
+// With the views adjusted, the corner's observations fail the chi-square test; the two that disagree are
+// dropped and the worst corner comes back to 0.12 mm. (Scenes that show this depend on the image noise:
+// with the sensor's earlier normal generator it was scene 20.)
 TEST(ScanTest, AnObservationThatDisagreesAfterTheAdjustmentIsDropped) {
   ScanTwinOptions to;
   to.seed = 77;
   to.kind = sim::ObjectKind::kBox;
-  to.scene = 20;
+  to.scene = 32;
   double max_error_mm[2] = {0, 0};
   for (const bool test : {true, false}) {
     ScanTwin twin(to);

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <vector>
 
 #include "shared/sim/render/render.h"
 
@@ -33,6 +34,42 @@ TEST(SensorTest, MeanAndVarianceFollowTheConfiguredModel) {
     // The sample variance of 65536 values is good to about 0.6 %.
     EXPECT_NEAR(st.var / expected_var, 1.0, 0.03) << "level " << level << " var " << st.var;
   }
+}
+
+TEST(SensorTest, ReadNoiseHasTheNormalShapeIncludingItsTails) {
+  // Read noise of 12 DN around 128 (no shot noise): the fractions beyond 1, 2, 3 and 3.5 sigma and
+  // the fourth moment are those of a normal distribution. A generator with the right variance but the
+  // wrong shape (a sum of uniforms, a table without tails, a wrong layer of a ziggurat) fails here.
+  SensorOptions s;
+  s.gain_dn_per_electron = 0;
+  s.read_noise_dn = 12;
+  const int n = 1024;
+  const cv::Mat irr(n, n, CV_32FC1, cv::Scalar(128.0));
+  const cv::Mat out = ApplySensor(irr, s, 99);
+  const double sigma = std::sqrt(s.read_noise_dn * s.read_noise_dn + 1.0 / 12);
+  std::vector<double> beyond(4, 0.0);
+  const double limits[] = {1.0, 2.0, 3.0, 3.5};
+  double m4 = 0;
+  for (int r = 0; r < n; ++r) {
+    for (int c = 0; c < n; ++c) {
+      const double z = (out.at<uint8_t>(r, c) - 128.0) / sigma;
+      m4 += z * z * z * z;
+      for (int k = 0; k < 4; ++k) beyond[static_cast<std::size_t>(k)] += std::abs(z) > limits[k] ? 1 : 0;
+    }
+  }
+  const double count = static_cast<double>(n) * n;
+  m4 /= count;
+  // Two-sided normal tail fractions, computed for the 1 DN bins: |v - 128| > L sigma means
+  // |v - 128| >= floor(L sigma) + 1 DN, i.e. beyond (floor(L sigma) + 0.5) DN before rounding.
+  for (int k = 0; k < 4; ++k) {
+    const double edge = (std::floor(limits[k] * sigma) + 0.5) / s.read_noise_dn;
+    const double expected = std::erfc(edge / std::sqrt(2.0));
+    const double measured = beyond[static_cast<std::size_t>(k)] / count;
+    // Binomial standard error, 5 of them.
+    EXPECT_NEAR(measured, expected, 5 * std::sqrt(expected * (1 - expected) / count))
+        << "beyond " << limits[k] << " sigma";
+  }
+  EXPECT_NEAR(m4, 3.0, 0.05);  // its standard error is about 0.01
 }
 
 TEST(SensorTest, FewElectronsArePoissonDistributed) {
