@@ -14,7 +14,7 @@
 //                   [--junction-refit DEG] [--refine-poses]
 //                   [--no-rail-stops] [--no-track-test] [--no-table-support] [--no-second-round]
 //                   [--no-adjusted-test] [--rail-repeatability MM]
-//                   [--json FILE] [--out DIR]
+//                   [--list-points-over PX] [--json FILE] [--out DIR]
 // --flat-band and --junction-refit DEG turn on the front end's opt-in fits (empl.photometric_flat_band,
 // empl.junction_refit_angle_deg), --refine-poses the bundle adjustment's view poses (within their priors),
 // to measure what they change in the scans; --no-rail-stops holds each station's rail stop at its
@@ -27,6 +27,8 @@
 // the twin's rail (0.1 mm std by default; 0 lands exactly where the encoder says), to tell the rail's share
 // of the errors.
 // --scene K starts at scene K (K, K+1, ... K+N-1), to look again at one scene of a longer study.
+// --list-points-over PX lists every IDI point farther than PX from its true corner, with its view, the
+// junction and how far the corner lies off each of the point's lines (which line is wrong, and by how much).
 // --out DIR keeps each scene's run folder (images, regions, overlays, model) in DIR/OBJECT_SCENE.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -63,7 +65,7 @@ int Main(int argc, char** argv) {
   double elevation_deg = 0, distance_mm = 0;
   bool flat_band = false, refine_poses = false, rail_stops = true, track_test = true, table_support = true,
        second_round = true, adjusted_test = true;
-  double junction_refit_deg = 0, rail_repeatability_mm = -1;
+  double junction_refit_deg = 0, rail_repeatability_mm = -1, list_over_px = 0;
   unsigned seed = 1;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -107,14 +109,17 @@ int Main(int argc, char** argv) {
       adjusted_test = false;
     else if (a == "--junction-refit") junction_refit_deg = number();
     else if (a == "--rail-repeatability") rail_repeatability_mm = number();
+    else if (a == "--list-points-over")
+      list_over_px = number();
     else {
-      fmt::print(stderr,
-                 "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--scene FIRST] [--seed S] "
-                 "[--stations K] [--span DEG] "
-                 "[--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--flat-band] "
-                 "[--junction-refit DEG] [--refine-poses] [--no-rail-stops] [--no-track-test] [--no-table-support] "
-                 "[--no-second-round] [--no-adjusted-test] [--rail-repeatability MM] [--json FILE] "
-                 "[--out DIR]\n");
+      fmt::print(
+          stderr,
+          "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--scene FIRST] [--seed S] "
+          "[--stations K] [--span DEG] "
+          "[--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--flat-band] "
+          "[--junction-refit DEG] [--refine-poses] [--no-rail-stops] [--no-track-test] [--no-table-support] "
+          "[--no-second-round] [--no-adjusted-test] [--rail-repeatability MM] [--list-points-over PX] [--json FILE] "
+          "[--out DIR]\n");
       return 2;
     }
   }
@@ -227,7 +232,8 @@ int Main(int argc, char** argv) {
         continue;
       }
       const workcell::ScanTruth t = twin.Evaluate(*r, o);
-      const workcell::CorrespondenceTruth m = twin.EvaluateCorrespondence(*r);
+      const workcell::CorrespondenceTruth m = twin.EvaluateCorrespondence(*r, list_over_px);
+      for (const std::string& line : m.far_points) fmt::print("  {} {}: {}\n", name, s, line);
       if (m.scored) {
         match.Add(m);
         row.update({{"pair_true_matches", m.true_matches},

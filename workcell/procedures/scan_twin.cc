@@ -151,7 +151,63 @@ namespace {
 constexpr double kLabelTolerancePx = 1.5;
 }  // namespace
 
-CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const {
+namespace {
+
+// One line about an IDI point far from its corner (CorrespondenceTruth::far_points).
+std::string DescribeFarPoint(const std::string& view,
+                             const CameraModel& camera,
+                             const sim::GroundTruth& t,
+                             const ViewFeatures& features,
+                             const ViewPoint& p,
+                             int corner,
+                             const std::map<std::pair<std::string, int>, int>& ids) {
+  const sim::TruthJunction* junction = nullptr;
+  for (const sim::TruthJunction& j : t.junctions) {
+    const auto it = ids.find({j.object, j.vertex});
+    if (j.is_vertex && it != ids.end() && it->second == corner) junction = &j;
+  }
+  if (junction == nullptr) return view + ": corner not in this view's truth";
+  const Vec2d truth = UndistortPixel(camera, junction->xy_px);
+  std::string out = fmt::format(
+      "{}: {} vertex {} ({} junction, {} true edges) at ({:.1f}, {:.1f}): point {:.2f} px off, own sigma {:.3f} px;",
+      view,
+      junction->object,
+      junction->vertex,
+      junction->type,
+      junction->lines.size(),
+      truth.x(),
+      truth.y(),
+      (p.xy - truth).norm(),
+      p.sigma_px);
+  for (const int li : p.lines) {
+    const ViewLine& l = features.lines[static_cast<std::size_t>(li)];
+    // The true edge nearest in angle among those meeting at the corner.
+    double best_angle = 180;
+    for (const int tid : junction->lines) {
+      for (const sim::TruthLine& tl : t.lines) {
+        if (tl.id != tid) continue;
+        const double c = std::clamp(std::abs(tl.normal.dot(l.line.normal)), 0.0, 1.0);
+        best_angle = std::min(best_angle, std::acos(c) * 180.0 / 3.14159265358979323846);
+      }
+    }
+    const double off = l.line.normal.dot(truth) - l.line.offset;
+    const double length = (l.end2 - l.end1).norm();
+    const double to_end = std::min((l.end1 - truth).norm(), (l.end2 - truth).norm());
+    out += fmt::format(
+        " line {}: corner {:+.2f} px off it, {:.2f} deg from the nearest true edge, {:.0f} px long, nearest end {:.1f} "
+        "px from the corner;",
+        li,
+        off,
+        best_angle,
+        length,
+        to_end);
+  }
+  return out;
+}
+
+}  // namespace
+
+CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r, double list_over_px) const {
   CorrespondenceTruth score;
   const auto& left = cell_->Truths(BiclopsSide::kLeft);
   const auto& right = cell_->Truths(BiclopsSide::kRight);
@@ -189,6 +245,10 @@ CorrespondenceTruth ScanTwin::EvaluateCorrespondence(const ScanReport& r) const 
       if (within.size() == 1) {
         score.point_error_px.push_back(error);
         score.point_sigma_px.push_back(p.sigma_px);
+        if (list_over_px > 0 && error > list_over_px) {
+          score.far_points.push_back(
+              DescribeFarPoint(sv.name, sv.camera, t, r.structure.matched_features[v], p, within[0], ids));
+        }
       }
       found[v].insert(within.begin(), within.end());
       label[v].push_back(std::move(within));

@@ -74,6 +74,10 @@ struct CorrespondenceTruth {
   // Every IDI point labelled with exactly one corner: its distance to that corner's image and its own
   // sigma_px (the front end's accuracy on the scan's images; the points of every view, matched or not).
   std::vector<double> point_error_px, point_sigma_px;
+  // With EvaluateCorrespondence's `list_over_px` > 0: one line per labelled IDI point farther than that
+  // from its corner, saying which view and corner, the junction, the point's own sigma, and for each of
+  // its lines how far the true corner lies off it and its angle to the nearest true edge.
+  std::vector<std::string> far_points;
   bool scored = false;       // false without kept truth (ScanTwinOptions::keep_truth) or views that do not line up
   double precision() const { return Ratio(true_matches, true_matches + false_matches); }
   double recall() const { return Ratio(corners_matched, found_in_both); }
@@ -102,7 +106,7 @@ class ScanTwin {
   ScanTruth Evaluate(const ScanReport& report, const ScanOptions& options) const;
   // Needs ScanTwinOptions::keep_truth: the scan takes one frame per camera per station, in the order of
   // report.views, and the twin kept each frame's truth.
-  CorrespondenceTruth EvaluateCorrespondence(const ScanReport& report) const;
+  CorrespondenceTruth EvaluateCorrespondence(const ScanReport& report, double list_over_px = 0) const;
 
  private:
   ScanTwinOptions options_;
