@@ -138,6 +138,10 @@ struct IdiOptions {
   double merge_radius_px = 2.5;
   // Margin outside the image within which a point is still kept (px).
   double image_margin_px = 2.0;
+  // A line takes part only in the first point beyond each end of its confirmed segment (and in any
+  // along the segment): its extension bridges the blur where its edge ends, not the way to a corner
+  // beyond that one.
+  bool first_point_beyond_end = true;
 
   Status Check() const;
 };

@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
 namespace idi {
@@ -146,12 +147,66 @@ std::vector<IdiPoint> FindIdiPoints(std::vector<EmplLine>* lines_io, const IdiOp
     if (!IntersectLinesWeighted(ls, mean, &p.xy, &p.covariance)) {
       continue;
     }
-    p.id = static_cast<int>(points.size());
-    for (int id : ids) {
-      p.line_ids.push_back(lines[static_cast<std::size_t>(id)].id);
-      lines[static_cast<std::size_t>(id)].point_ids.push_back(p.id);
-    }
+    p.line_ids = ids;  // indices into `lines` for now (ids below)
     points.push_back(std::move(p));
+  }
+  // A line reaches beyond each end of its confirmed segment only as far as the first point there: its
+  // extension bridges the blur at the corner where the edge ends, not past that corner to the next one
+  // (a long line's extension would otherwise pass near a corner a dozen pixels beyond its own).
+  if (options.first_point_beyond_end) {
+    std::vector<std::vector<std::size_t>> on_line(n);
+    for (std::size_t k = 0; k < points.size(); ++k) {
+      for (const int id : points[k].line_ids) on_line[static_cast<std::size_t>(id)].push_back(k);
+    }
+    std::vector<std::vector<int>> drop(points.size());
+    for (std::size_t i = 0; i < n; ++i) {
+      const EmplLine& l = lines[i];
+      const Eigen::Vector2d d = l.p2 - l.p1;
+      const double len = d.norm();
+      if (len <= 0) continue;
+      for (const int side : {-1, 1}) {
+        std::size_t nearest = points.size();
+        double nearest_beyond = std::numeric_limits<double>::infinity();
+        for (const std::size_t k : on_line[i]) {
+          const double t = d.dot(points[k].xy - l.p1) / len;
+          const double beyond = side < 0 ? -t : t - len;
+          if (beyond > 0 && beyond < nearest_beyond) {
+            nearest_beyond = beyond;
+            nearest = k;
+          }
+        }
+        for (const std::size_t k : on_line[i]) {
+          const double t = d.dot(points[k].xy - l.p1) / len;
+          const double beyond = side < 0 ? -t : t - len;
+          if (beyond > 0 && k != nearest) drop[k].push_back(static_cast<int>(i));
+        }
+      }
+    }
+    std::vector<IdiPoint> kept;
+    for (std::size_t k = 0; k < points.size(); ++k) {
+      IdiPoint& p = points[k];
+      if (!drop[k].empty()) {
+        std::vector<int> ids;
+        std::vector<const EmplLine*> ls;
+        for (const int id : p.line_ids) {
+          if (std::find(drop[k].begin(), drop[k].end(), id) != drop[k].end()) continue;
+          ids.push_back(id);
+          ls.push_back(&lines[static_cast<std::size_t>(id)]);
+        }
+        if (ls.size() < 2 || !IntersectLinesWeighted(ls, p.xy, &p.xy, &p.covariance)) continue;
+        p.line_ids = ids;
+      }
+      kept.push_back(std::move(p));
+    }
+    points = std::move(kept);
+  }
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    IdiPoint& p = points[k];
+    p.id = static_cast<int>(k);
+    for (int& id : p.line_ids) {
+      lines[static_cast<std::size_t>(id)].point_ids.push_back(p.id);
+      id = lines[static_cast<std::size_t>(id)].id;
+    }
   }
   // Points on each line ordered from p1 to p2.
   for (EmplLine& l : lines) {

@@ -112,12 +112,15 @@ TEST(ScanTest, CorrespondenceOfBracketScenesIsPrecise) {
   std::printf("epipolar error within a station: %zu pairs, median %.4f px\n", within.size(), within[within.size() / 2]);
   EXPECT_LT(within[within.size() / 2], 0.07) << "median epipolar error of the points matched within a station, px";
   // The bundle adjustment estimates each station's rail stop; with the views as it leaves them the
-  // stations agree as well as the two cameras of one station do (0.045 px over the scan study's scenes).
+  // stations agree nearly as well as the two cameras of one station do (0.046 px over the scan study's
+  // 120 scenes, against 0.12-0.13 px across stations before the adjustment). These three bracket scenes
+  // alone give 0.070-0.072 px, by the image noise's draw and the front end's options: the limit leaves
+  // that spread room and still fails if the rail stops are not estimated.
   std::vector<double>& adjusted = pooled.epipolar_adjusted_px;
   ASSERT_EQ(adjusted.size(), pooled.epipolar_px.size());
   std::nth_element(adjusted.begin(), adjusted.begin() + static_cast<long>(adjusted.size() / 2), adjusted.end());
   std::printf("epipolar error with the adjusted views: median %.4f px\n", adjusted[adjusted.size() / 2]);
-  EXPECT_LT(adjusted[adjusted.size() / 2], 0.07) << "median epipolar error with each station's rail stop estimated, px";
+  EXPECT_LT(adjusted[adjusted.size() / 2], 0.08) << "median epipolar error with each station's rail stop estimated, px";
   // Each labelled IDI point against its true corner's image: the front end's accuracy on these images
   // (0.05 px median over the scan study's scenes).
   ASSERT_EQ(pooled.point_error_px.size(), pooled.point_sigma_px.size());
