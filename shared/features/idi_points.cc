@@ -164,21 +164,23 @@ std::vector<IdiPoint> FindIdiPoints(std::vector<EmplLine>* lines_io, const IdiOp
       const Eigen::Vector2d d = l.p2 - l.p1;
       const double len = d.norm();
       if (len <= 0) continue;
+      // How far each of the line's points lies beyond its end on `side` (negative: not beyond it).
+      auto beyond = [&](std::size_t k, int side) {
+        const double t = d.dot(points[k].xy - l.p1) / len;
+        return side < 0 ? -t : t - len;
+      };
       for (const int side : {-1, 1}) {
         std::size_t nearest = points.size();
         double nearest_beyond = std::numeric_limits<double>::infinity();
         for (const std::size_t k : on_line[i]) {
-          const double t = d.dot(points[k].xy - l.p1) / len;
-          const double beyond = side < 0 ? -t : t - len;
-          if (beyond > 0 && beyond < nearest_beyond) {
-            nearest_beyond = beyond;
+          const double b = beyond(k, side);
+          if (b > 0 && b < nearest_beyond) {
+            nearest_beyond = b;
             nearest = k;
           }
         }
         for (const std::size_t k : on_line[i]) {
-          const double t = d.dot(points[k].xy - l.p1) / len;
-          const double beyond = side < 0 ? -t : t - len;
-          if (beyond > 0 && k != nearest) drop[k].push_back(static_cast<int>(i));
+          if (k != nearest && beyond(k, side) > 0) drop[k].push_back(static_cast<int>(i));
         }
       }
     }

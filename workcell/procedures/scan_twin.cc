@@ -149,9 +149,6 @@ namespace {
 // An IDI point is labelled with the true corner whose image lies this close (else it is a T-junction, a
 // texture corner or a stray point).
 constexpr double kLabelTolerancePx = 1.5;
-}  // namespace
-
-namespace {
 
 // One line about an IDI point far from its corner (CorrespondenceTruth::far_points).
 std::string DescribeFarPoint(const std::string& view,
