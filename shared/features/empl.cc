@@ -55,6 +55,178 @@ const NormalTable& Normal() {
   return table;
 }
 
+// The photometric fit of one line's pixels (see EmplFitter::PhotometricRefine): a blurred step
+// b_k + a_k Phi((n . u - e) / sigma) [+ m_k d] per chunk k, with d the distance from the starting line
+// (N = 3: the background's slope across the edge) or without it (N = 2).
+struct PhotometricSolution {
+  double theta = 0, e = 0, sigma = 0;
+  std::vector<double> contrast;  // a_k
+  Eigen::Matrix3d information;   // of (theta, e, sigma), the chunks' linear parameters eliminated
+  double rss = 0;
+};
+
+template <int N>
+bool SolvePhotometric(
+    std::vector<EmplPixel>& px, int n_chunks, double theta, double e, double sigma, PhotometricSolution* out) {
+  using VecN = Eigen::Matrix<double, N, 1>;
+  using MatN = Eigen::Matrix<double, N, N>;
+  using MatN3 = Eigen::Matrix<double, N, 3>;
+  const std::size_t nc = static_cast<std::size_t>(n_chunks);
+  const NormalTable& normal = Normal();
+  const double c0 = std::cos(theta), s0 = std::sin(theta), e0 = e;
+  // The linear regressors of a pixel: (Phi, 1[, d]).
+  auto regressors = [&](const EmplPixel& p, double cdf) {
+    VecN x;
+    x(0) = cdf;
+    x(1) = 1.0;
+    if constexpr (N == 3) {
+      x(2) = c0 * p.ux + s0 * p.uy - e0;
+    }
+    return x;
+  };
+  std::vector<VecN> lin(nc, VecN::Zero());  // (a_k, b_k[, m_k])
+  // The chunks' linear parameters for the starting geometry: N x N linear least squares each.
+  {
+    std::vector<MatN> hh(nc, MatN::Zero());
+    std::vector<VecN> hb(nc, VecN::Zero());
+    for (const EmplPixel& p : px) {
+      double cdf, pdf;
+      normal.Eval((c0 * p.ux + s0 * p.uy - e) / sigma, &cdf, &pdf);
+      const VecN x = regressors(p, cdf);
+      const std::size_t k = static_cast<std::size_t>(p.chunk);
+      hh[k].noalias() += x * x.transpose();
+      hb[k].noalias() += x * static_cast<double>(p.value);
+    }
+    for (std::size_t k = 0; k < nc; ++k) {
+      if (!(hh[k].determinant() > 1e-9 * (hh[k].diagonal().prod() + 1e-30))) {
+        return false;
+      }
+      lin[k] = hh[k].inverse() * hb[k];
+    }
+  }
+  // Gauss-Newton on (theta, e, sigma) with each chunk's linear parameters eliminated by the Schur
+  // complement. Each pass accumulates the normal equations at the current estimate; a pass that finds a
+  // larger residual than the previous one reverts to it and stops (the start is already close).
+  struct ChunkAcc {
+    MatN hcc = MatN::Zero();    // x^T x
+    MatN3 hcg = MatN3::Zero();  // x^T J
+    VecN bc = VecN::Zero();     // x^T r
+  };
+  std::vector<ChunkAcc> chunks(nc);
+  std::vector<MatN> hcc_inv(nc);
+  Eigen::Matrix3d s_mat = Eigen::Matrix3d::Identity();
+  double rss = 0, prev_rss = std::numeric_limits<double>::infinity();
+  double prev_theta = theta, prev_e = e, prev_sigma = sigma;
+  std::vector<VecN> prev_lin = lin;
+  Eigen::Matrix3d prev_s = s_mat;
+  double outlier_cut = std::numeric_limits<double>::infinity();
+  constexpr double kFlatZ = 4.5;  // Phi(4.5) = 1 - 3.4e-6
+  for (int iter = 0; iter < 6; ++iter) {
+    for (ChunkAcc& ck : chunks) {
+      ck = ChunkAcc{};
+    }
+    Eigen::Matrix3d hgg = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d gg = Eigen::Vector3d::Zero();
+    rss = 0;
+    const double c = std::cos(theta), s = std::sin(theta), inv_sigma = 1.0 / sigma;
+    for (EmplPixel& p : px) {
+      if (p.weight == 0.0f) {
+        continue;
+      }
+      const double z = (c * p.ux + s * p.uy - e) * inv_sigma;
+      const std::size_t k = static_cast<std::size_t>(p.chunk);
+      ChunkAcc& ck = chunks[k];
+      if (std::fabs(z) > kFlatZ) {
+        // The flat image beside the edge (most of a wide band): it tells only the chunk's linear
+        // parameters; the step's slope there is below 4e-5 of its peak.
+        const VecN x = regressors(p, z > 0 ? 1.0 : 0.0);
+        const double r = p.value - x.dot(lin[k]);
+        if (std::fabs(r) > outlier_cut) {
+          p.weight = 0.0f;
+          continue;
+        }
+        ck.hcc.noalias() += x * x.transpose();
+        ck.bc.noalias() += x * r;
+        rss += r * r;
+        continue;
+      }
+      double cdf, pdf;
+      normal.Eval(z, &cdf, &pdf);
+      const VecN x = regressors(p, cdf);
+      const double r = p.value - x.dot(lin[k]);
+      if (std::fabs(r) > outlier_cut) {
+        p.weight = 0.0f;  // specks and clutter far off the model
+        continue;
+      }
+      const double ap = lin[k](0) * pdf * inv_sigma;
+      // d model / d(theta, e, sigma); d model / d(linear parameters) = x.
+      const Eigen::Vector3d j(ap * (-s * p.ux + c * p.uy), -ap, -ap * z);
+      hgg.noalias() += j * j.transpose();
+      gg.noalias() += r * j;
+      ck.hcc.noalias() += x * x.transpose();
+      ck.hcg.noalias() += x * j.transpose();
+      ck.bc.noalias() += x * r;
+      rss += r * r;
+    }
+    if (rss > prev_rss * (1.0 + 1e-9)) {
+      theta = prev_theta;
+      e = prev_e;
+      sigma = prev_sigma;
+      lin = prev_lin;
+      s_mat = prev_s;
+      rss = prev_rss;
+      break;
+    }
+    Eigen::Matrix3d schur = hgg;
+    Eigen::Vector3d rhs = gg;
+    for (std::size_t k = 0; k < nc; ++k) {
+      const ChunkAcc& ck = chunks[k];
+      const double det = ck.hcc.determinant();
+      if (!(det > 1e-12 * (ck.hcc.diagonal().prod() + 1e-30))) {
+        return false;
+      }
+      hcc_inv[k] = ck.hcc.inverse();
+      schur -= ck.hcg.transpose() * hcc_inv[k] * ck.hcg;
+      rhs -= ck.hcg.transpose() * hcc_inv[k] * ck.bc;
+    }
+    s_mat = schur;
+    const Eigen::Vector3d dg = schur.ldlt().solve(rhs);
+    if (!dg.allFinite()) {
+      return false;
+    }
+    prev_theta = theta;
+    prev_e = e;
+    prev_sigma = sigma;
+    prev_lin = lin;
+    prev_s = schur;
+    prev_rss = rss;
+    for (std::size_t k = 0; k < nc; ++k) {
+      lin[k] += hcc_inv[k] * (chunks[k].bc - chunks[k].hcg * dg);
+    }
+    theta += dg(0);
+    e += dg(1);
+    sigma = std::clamp(sigma + dg(2), 0.15, 12.0);
+    if (iter == 0) {
+      outlier_cut = 5.0 * std::sqrt(rss / static_cast<double>(px.size()));
+      prev_rss = std::numeric_limits<double>::infinity();  // the cut changes the residual set
+    }
+    // Converged when the last step is far below the noise (the step itself is applied).
+    if (iter >= 1 && std::fabs(dg(1)) < 1e-3 && std::fabs(dg(0)) < 1e-5 && std::fabs(dg(2)) < 1e-2) {
+      break;
+    }
+  }
+  out->theta = theta;
+  out->e = e;
+  out->sigma = sigma;
+  out->contrast.resize(nc);
+  for (std::size_t k = 0; k < nc; ++k) {
+    out->contrast[k] = lin[k](0);
+  }
+  out->information = s_mat;
+  out->rss = rss;
+  return true;
+}
+
 // Angle difference wrapped to (-pi/2, pi/2] (lines are undirected).
 double WrapHalfPi(double a) {
   a = std::fmod(a, kEmplPi);
@@ -845,172 +1017,18 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
   if (stations_used < std::max(8, static_cast<int>(options_.hough.min_length_px / 2)) || n_chunks < 1) {
     return false;
   }
-  std::vector<double> a(static_cast<std::size_t>(n_chunks), 0.0), b(static_cast<std::size_t>(n_chunks), 0.0);
-  const NormalTable& normal = Normal();
-  // Contrast and background of each chunk for the starting geometry: 2x2 linear least squares.
-  {
-    std::vector<std::array<double, 5>> acc(static_cast<std::size_t>(n_chunks), {0, 0, 0, 0, 0});
-    const double c = std::cos(theta), s = std::sin(theta);
-    for (const Px& p : px) {
-      double cdf, pdf;
-      normal.Eval((c * p.ux + s * p.uy - e) / sigma, &cdf, &pdf);
-      auto& q = acc[static_cast<std::size_t>(p.chunk)];
-      q[0] += cdf * cdf;
-      q[1] += cdf;
-      q[2] += 1.0;
-      q[3] += cdf * p.value;
-      q[4] += p.value;
-    }
-    for (std::size_t k = 0; k < acc.size(); ++k) {
-      const auto& q = acc[k];
-      const double det = q[0] * q[2] - q[1] * q[1];
-      if (!(std::fabs(det) > 1e-9 * (q[0] * q[2] + 1e-30))) {
-        return false;
-      }
-      a[k] = (q[2] * q[3] - q[1] * q[4]) / det;
-      b[k] = (q[0] * q[4] - q[1] * q[3]) / det;
-    }
+  PhotometricSolution sol;
+  const bool solved = eo.photometric_ramp ? SolvePhotometric<3>(px, n_chunks, theta, e, sigma, &sol)
+                                          : SolvePhotometric<2>(px, n_chunks, theta, e, sigma, &sol);
+  if (!solved) {
+    return false;
   }
-  // Gauss-Newton on (theta, e, sigma) with each chunk's (A, B) eliminated by the Schur complement.
-  // Each pass accumulates the normal equations at the current estimate; a pass that finds a larger
-  // residual than the previous one reverts to it and stops (the start is already close).
-  struct ChunkAcc {
-    double hcc00 = 0, hcc01 = 0, hcc11 = 0;  // [cdf, 1]^T [cdf, 1]
-    double hcg[2][3] = {{0, 0, 0}, {0, 0, 0}};
-    double bc0 = 0, bc1 = 0;
-  };
-  std::vector<ChunkAcc> chunks(static_cast<std::size_t>(n_chunks));
-  Eigen::Matrix3d s_mat = Eigen::Matrix3d::Identity();
-  double rss = 0, prev_rss = std::numeric_limits<double>::infinity();
-  double prev_theta = theta, prev_e = e, prev_sigma = sigma;
-  std::vector<double> prev_a = a, prev_b = b;
-  Eigen::Matrix3d prev_s = s_mat;
-  double outlier_cut = std::numeric_limits<double>::infinity();
-  constexpr double kFlatZ = 4.5;  // Phi(4.5) = 1 - 3.4e-6
-  for (int iter = 0; iter < 6; ++iter) {
-    for (ChunkAcc& ck : chunks) {
-      ck = ChunkAcc{};
-    }
-    double h00 = 0, h01 = 0, h02 = 0, h11 = 0, h12 = 0, h22 = 0, g0 = 0, g1 = 0, g2 = 0;
-    rss = 0;
-    const double c = std::cos(theta), s = std::sin(theta), inv_sigma = 1.0 / sigma;
-    for (Px& p : px) {
-      if (p.weight == 0.0f) {
-        continue;
-      }
-      const double z = (c * p.ux + s * p.uy - e) * inv_sigma;
-      const std::size_t k = static_cast<std::size_t>(p.chunk);
-      if (std::fabs(z) > kFlatZ) {
-        // The flat image beside the edge (most of the band): it tells only the chunk's background and
-        // contrast; the step's slope there is below 4e-5 of its peak.
-        const double cdf = z > 0 ? 1.0 : 0.0;
-        const double r = p.value - (b[k] + a[k] * cdf);
-        if (std::fabs(r) > outlier_cut) {
-          p.weight = 0.0f;
-          continue;
-        }
-        ChunkAcc& ck = chunks[k];
-        ck.hcc00 += cdf;
-        ck.hcc01 += cdf;
-        ck.hcc11 += 1.0;
-        ck.bc0 += cdf * r;
-        ck.bc1 += r;
-        rss += r * r;
-        continue;
-      }
-      double cdf, pdf;
-      normal.Eval(z, &cdf, &pdf);
-      const double r = p.value - (b[k] + a[k] * cdf);
-      if (std::fabs(r) > outlier_cut) {
-        p.weight = 0.0f;  // specks and clutter far off the model
-        continue;
-      }
-      const double ap = a[k] * pdf * inv_sigma;
-      // d model / d(theta, e, sigma); d model / d(A, B) = (cdf, 1).
-      const double j0 = ap * (-s * p.ux + c * p.uy), j1 = -ap, j2 = -ap * z;
-      h00 += j0 * j0;
-      h01 += j0 * j1;
-      h02 += j0 * j2;
-      h11 += j1 * j1;
-      h12 += j1 * j2;
-      h22 += j2 * j2;
-      g0 += r * j0;
-      g1 += r * j1;
-      g2 += r * j2;
-      ChunkAcc& ck = chunks[k];
-      ck.hcc00 += cdf * cdf;
-      ck.hcc01 += cdf;
-      ck.hcc11 += 1.0;
-      ck.hcg[0][0] += cdf * j0;
-      ck.hcg[0][1] += cdf * j1;
-      ck.hcg[0][2] += cdf * j2;
-      ck.hcg[1][0] += j0;
-      ck.hcg[1][1] += j1;
-      ck.hcg[1][2] += j2;
-      ck.bc0 += cdf * r;
-      ck.bc1 += r;
-      rss += r * r;
-    }
-    if (rss > prev_rss * (1.0 + 1e-9)) {
-      theta = prev_theta;
-      e = prev_e;
-      sigma = prev_sigma;
-      a = prev_a;
-      b = prev_b;
-      s_mat = prev_s;
-      rss = prev_rss;
-      break;
-    }
-    Eigen::Matrix3d schur;
-    schur << h00, h01, h02, h01, h11, h12, h02, h12, h22;
-    Eigen::Vector3d rhs(g0, g1, g2);
-    std::vector<Eigen::Matrix2d> hcc_inv(chunks.size());
-    for (std::size_t k = 0; k < chunks.size(); ++k) {
-      const ChunkAcc& ck = chunks[k];
-      Eigen::Matrix2d hcc;
-      hcc << ck.hcc00, ck.hcc01, ck.hcc01, ck.hcc11;
-      const double det = hcc.determinant();
-      if (!(det > 1e-12 * (ck.hcc00 * ck.hcc11 + 1e-30))) {
-        return false;
-      }
-      hcc_inv[k] = hcc.inverse();
-      Eigen::Matrix<double, 2, 3> hcg;
-      hcg << ck.hcg[0][0], ck.hcg[0][1], ck.hcg[0][2], ck.hcg[1][0], ck.hcg[1][1], ck.hcg[1][2];
-      schur -= hcg.transpose() * hcc_inv[k] * hcg;
-      rhs -= hcg.transpose() * hcc_inv[k] * Eigen::Vector2d(ck.bc0, ck.bc1);
-    }
-    s_mat = schur;
-    const Eigen::Vector3d dg = schur.ldlt().solve(rhs);
-    if (!dg.allFinite()) {
-      return false;
-    }
-    prev_theta = theta;
-    prev_e = e;
-    prev_sigma = sigma;
-    prev_a = a;
-    prev_b = b;
-    prev_s = schur;
-    prev_rss = rss;
-    for (std::size_t k = 0; k < chunks.size(); ++k) {
-      const ChunkAcc& ck = chunks[k];
-      Eigen::Matrix<double, 2, 3> hcg;
-      hcg << ck.hcg[0][0], ck.hcg[0][1], ck.hcg[0][2], ck.hcg[1][0], ck.hcg[1][1], ck.hcg[1][2];
-      const Eigen::Vector2d dc = hcc_inv[k] * (Eigen::Vector2d(ck.bc0, ck.bc1) - hcg * dg);
-      a[k] += dc(0);
-      b[k] += dc(1);
-    }
-    theta += dg(0);
-    e += dg(1);
-    sigma = std::clamp(sigma + dg(2), 0.15, 12.0);
-    if (iter == 0) {
-      outlier_cut = 5.0 * std::sqrt(rss / static_cast<double>(px.size()));
-      prev_rss = std::numeric_limits<double>::infinity();  // the cut changes the residual set
-    }
-    // Converged when the last step is far below the noise (the step itself is applied).
-    if (iter >= 1 && std::fabs(dg(1)) < 1e-3 && std::fabs(dg(0)) < 1e-5 && std::fabs(dg(2)) < 1e-2) {
-      break;
-    }
-  }
+  theta = sol.theta;
+  e = sol.e;
+  sigma = sol.sigma;
+  const std::vector<double>& a = sol.contrast;
+  const Eigen::Matrix3d& s_mat = sol.information;
+  const double rss = sol.rss;
   if (std::fabs(e - *e_io) > 1.5 || std::fabs(WrapHalfPi(theta - *theta_io)) > 0.05) {
     return false;
   }
@@ -1018,7 +1036,7 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
   for (const Px& p : px) {
     used += p.weight > 0 ? 1.0 : 0.0;
   }
-  const double dof = std::max(1.0, used - 3.0 - 2.0 * n_chunks);
+  const double dof = std::max(1.0, used - 3.0 - (eo.photometric_ramp ? 3.0 : 2.0) * n_chunks);
   const Eigen::Matrix3d cov3 = s_mat.inverse() * (rss / dof);
   if (!cov3.allFinite() || cov3(0, 0) <= 0 || cov3(1, 1) <= 0) {
     return false;

@@ -90,11 +90,20 @@ struct EmplOptions {
   double chunk_length_px = 24.0;
   // The photometric band goes on over the flat image beside the edge (up to 2 half-widths + 2 px each
   // side, stopping short of any gradient above Canny's low threshold): the chunk's background and
-  // contrast are then fixed by pixels the edge does not move, and the offset's error falls from 1.3 to
-  // about 1.1 times the Cramer-Rao bound on clean edges. Off by default: on the twin's box scenes it
-  // made one vertex worse (StructureIntegrationTest.BoxVerticesFromSixRenderedViews: 0.44 mm, line
-  // 0.4), probably the shading ramps of the faces beside the edges; not understood yet.
+  // contrast are then fixed by pixels the edge does not move, and on clean edges of 40 px and more the
+  // offset's error falls from 1.2-1.6 to 0.9-1.3 times the Cramer-Rao bound (features_bench section A),
+  // IDI points' from 1.3-2.2 to 1.1-1.8 (section B). Off by default: on textured faces the flat image is
+  // not flat. With it, line offsets on the twin's textured object scenes got worse (median 0.017 ->
+  // 0.025 px, 90th percentile 0.048 -> 0.091 px; section D, FEATURES_BENCH_VERBOSE), and the scan
+  // study's corners were better for one seed and worse for another. Its residuals beside the edge do
+  // not show the texture (it is smooth and within the noise), so it cannot be screened out that way.
   bool photometric_flat_band = false;
+  // Each chunk's background may slope across the edge: a third linear parameter per chunk, times the
+  // distance from the starting line. Odd about the edge, so it costs the offset almost no information
+  // (section A). With the flat band, a shaded face beside an edge biases the offset wherever the band is
+  // lopsided (cut short on one side by another edge): +0.04 px at 1 grey level per px, and none with the
+  // ramp (EmplTest.PhotometricRampKeepsAnEdgeOnAShadedFaceUnbiased). Off by default with the flat band.
+  bool photometric_ramp = false;
   // Stations within this distance of a confirmed end are left out of the photometric fit (corners).
   double end_margin_px = 2.0;
   // Collinear pieces are merged when the angle differs by less than merge_angle_deg (or 4 sigma),
