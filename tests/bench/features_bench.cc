@@ -210,6 +210,8 @@ void SectionA(bool quick) {
   FeatureOptions wo;
   wo.empl.photometric_flat_band = true;
   auto flat_band = FeatureDetector::Create(wo);
+  wo.empl.photometric_ramp = true;
+  auto flat_ramp = FeatureDetector::Create(wo);
   struct Cfg {
     double a, ratio, blur;
   };
@@ -218,9 +220,12 @@ void SectionA(bool quick) {
   const int trials = quick ? 20 : 80;
   for (const Cfg& c : cfgs) {
     for (double len : lengths) {
-      Stats s_p, s_g, s_w, s_l, ang_p, ang_w;
-      double pred = 0, pred_w = 0;
-      int npred = 0, npred_w = 0;
+      // Methods 0 photometric (the default), 1 gradient only (eq. 7.26), 2 with the flat band, 3 with the
+      // flat band and the background's ramp.
+      std::array<Stats, 4> s_m, ang_m;
+      std::array<double, 4> pred{};
+      std::array<int, 4> npred{};
+      Stats s_l;
       std::mt19937 rng(static_cast<unsigned>(len * 7 + c.ratio * 3 + c.blur));
       std::uniform_real_distribution<double> u(0, 1);
       const double bg = 0.2, fg = bg + c.a / 200.0;
@@ -233,9 +238,9 @@ void SectionA(bool quick) {
         const sim::Scene scene = FlatScene(cam, bg, {rect});
         const cv::Mat img = Render(scene, cam, c.blur, c.a / c.ratio, 1000 + static_cast<std::uint64_t>(t));
         const TrueLine tl = LineThroughPts(a, b);
-        for (int m = 0; m < 3; ++m) {
-          auto r = (m == 0 ? *precise : m == 1 ? *gradient_only : *flat_band).Detect(img);
-          Stats& s = m == 0 ? s_p : m == 1 ? s_g : s_w;
+        for (std::size_t m = 0; m < 4; ++m) {
+          auto r = (m == 0 ? *precise : m == 1 ? *gradient_only : m == 2 ? *flat_band : *flat_ramp).Detect(img);
+          Stats& s = s_m[m];
           ++s.trials;
           const EmplLine* l = r.ok() ? MatchLine(*r, tl) : nullptr;
           if (!l) continue;
@@ -243,11 +248,11 @@ void SectionA(bool quick) {
           const double sgn = l->normal.dot(tl.n) > 0 ? 1 : -1;
           s.Add(-sgn * l->SignedDistance(centre));
           if (m != 1) {
-            (m == 0 ? ang_p : ang_w).Add(std::remainder(l->Angle() - std::atan2(tl.n.y(), tl.n.x()), kPi));
+            ang_m[m].Add(std::remainder(l->Angle() - std::atan2(tl.n.y(), tl.n.x()), kPi));
             const Vec2d nd(-l->normal.y(), l->normal.x());
             const Eigen::Vector2d j(nd.dot(centre), -1.0);
-            (m == 0 ? pred : pred_w) += j.dot(l->covariance * j);
-            ++(m == 0 ? npred : npred_w);
+            pred[m] += j.dot(l->covariance * j);
+            ++npred[m];
           }
         }
         const auto segs = RunLsd(img);
@@ -266,9 +271,11 @@ void SectionA(bool quick) {
                     ang ? std::to_string(ang->Rms() * 1e3).substr(0, 6).c_str() : "-", abound * 1e3,
                     predicted > 0 ? std::to_string(predicted).substr(0, 6).c_str() : "-");
       };
-      row("EMPL (photometric)", s_p, &ang_p, npred ? std::sqrt(pred / npred) : 0);
-      row("EMPL (photometric, flat band)", s_w, &ang_w, npred_w ? std::sqrt(pred_w / npred_w) : 0);
-      row("EMPL (eq. 7.26 only)", s_g, nullptr, 0);
+      auto predicted = [&](std::size_t m) { return npred[m] ? std::sqrt(pred[m] / npred[m]) : 0.0; };
+      row("EMPL (photometric)", s_m[0], &ang_m[0], predicted(0));
+      row("EMPL (photometric, flat band)", s_m[2], &ang_m[2], predicted(2));
+      row("EMPL (photometric, flat band, ramp)", s_m[3], &ang_m[3], predicted(3));
+      row("EMPL (eq. 7.26 only)", s_m[1], nullptr, 0);
       row("OpenCV LSD", s_l, nullptr, 0);
       std::fflush(stdout);
     }
@@ -938,8 +945,27 @@ int main(int argc, char** argv) {
   std::string section = "ABCDEF";
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--quick") quick = true;
-    if (a == "--section" && i + 1 < argc) section = argv[++i];
+    if (a == "--quick") {
+      quick = true;
+    } else if (a == "--section" && i + 1 < argc) {
+      section = argv[++i];
+      if (section.empty() || section.find_first_not_of("ABCDEF") != std::string::npos) {
+        std::fprintf(stderr, "features_bench: --section takes letters of ABCDEF, got '%s'\n", section.c_str());
+        return 2;
+      }
+    } else {
+      const bool help = a == "--help" || a == "-h";
+      std::fprintf(help ? stdout : stderr,
+                   "%susage: features_bench [--quick] [--section LETTERS]\n"
+                   "  --quick            fewer trials and runs per row\n"
+                   "  --section LETTERS  any of E (time per frame), A (lines vs the bound), B (junctions),\n"
+                   "                     C (chessboard anchors, §7.13.2), D (the twin's object scenes),\n"
+                   "                     F (L-corners against their angle); default ABCDEF\n"
+                   "Markdown tables on stdout. FEATURES_BENCH_VERBOSE=1 lists section D's misses and spurious\n"
+                   "points; FEATURES_BENCH_DUMP=DIR writes section E's frames as PNG.\n",
+                   help ? "" : ("features_bench: unknown option '" + a + "'\n").c_str());
+      return help ? 0 : 2;
+    }
   }
   std::printf("# features_bench%s\n", quick ? " (--quick)" : "");
   if (section.find('E') != std::string::npos) idi::SectionE(quick);

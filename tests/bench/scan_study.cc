@@ -11,18 +11,18 @@
 //
 // Usage: scan_study [--calibration DIR | --oracle] [--scenes 10] [--scene 0] [--seed 1] [--stations K]
 //                   [--span DEG] [--object NAME] [--elevation DEG] [--distance MM] [--flat-band]
-//                   [--junction-refit DEG] [--refine-poses]
+//                   [--ramp] [--junction-refit DEG] [--refine-poses]
 //                   [--no-rail-stops] [--no-track-test] [--no-table-support] [--no-second-round]
 //                   [--no-adjusted-test] [--rail-repeatability MM]
 //                   [--list-points-over PX] [--json FILE] [--out DIR]
-// --flat-band and --junction-refit DEG turn on the front end's opt-in fits (empl.photometric_flat_band,
-// empl.junction_refit_angle_deg), --refine-poses the bundle adjustment's view poses (within their priors),
-// to measure what they change in the scans; --no-rail-stops holds each station's rail stop at its
-// reading (the adjustment estimates them by default); --no-track-test keeps the observations a track
-// check by their own sigmas would drop (CorrespondenceOptions::track_outlier_z); --no-table-support
-// leaves the points near the table top free (ScanOptions::points_on_table); --no-second-round takes no
-// extra stations when no grasp fits the first model (ScanOptions::extra_azimuths_deg); --no-adjusted-test
-// keeps every observation after the adjustment (StructureOptions::adjusted_outlier_z);
+// --flat-band, --ramp and --junction-refit DEG turn on the front end's opt-in fits
+// (empl.photometric_flat_band, empl.photometric_ramp, empl.junction_refit_angle_deg), --refine-poses the bundle
+// adjustment's view poses (within their priors), to measure what they change in the scans; --no-rail-stops holds each
+// station's rail stop at its reading (the adjustment estimates them by default); --no-track-test keeps the observations
+// a track check by their own sigmas would drop (CorrespondenceOptions::track_outlier_z); --no-table-support leaves the
+// points near the table top free (ScanOptions::points_on_table); --no-second-round takes no extra stations when no
+// grasp fits the first model (ScanOptions::extra_azimuths_deg); --no-adjusted-test keeps every observation after the
+// adjustment (StructureOptions::adjusted_outlier_z);
 // --rail-repeatability MM sets
 // the twin's rail (0.1 mm std by default; 0 lands exactly where the encoder says), to tell the rail's share
 // of the errors.
@@ -63,8 +63,8 @@ int Main(int argc, char** argv) {
   int scenes = 10, stations = 0, first_scene = 0;  // 0: the scan's default stations
   double span_deg = 0;             // > 0: the stations spread over +-span_deg
   double elevation_deg = 0, distance_mm = 0;
-  bool flat_band = false, refine_poses = false, rail_stops = true, track_test = true, table_support = true,
-       second_round = true, adjusted_test = true;
+  bool flat_band = false, ramp = false, refine_poses = false, rail_stops = true, track_test = true,
+       table_support = true, second_round = true, adjusted_test = true;
   double junction_refit_deg = 0, rail_repeatability_mm = -1, list_over_px = 0;
   unsigned seed = 1;
   for (int i = 1; i < argc; ++i) {
@@ -100,6 +100,8 @@ int Main(int argc, char** argv) {
     else if (a == "--elevation") elevation_deg = number();
     else if (a == "--distance") distance_mm = number();
     else if (a == "--flat-band") flat_band = true;
+    else if (a == "--ramp")
+      ramp = true;
     else if (a == "--refine-poses") refine_poses = true;
     else if (a == "--no-rail-stops") rail_stops = false;
     else if (a == "--no-track-test") track_test = false;
@@ -117,7 +119,7 @@ int Main(int argc, char** argv) {
           "usage: scan_study [--calibration DIR | --oracle] [--scenes N] [--scene FIRST] [--seed S] "
           "[--stations K] [--span DEG] "
           "[--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--flat-band] "
-          "[--junction-refit DEG] [--refine-poses] [--no-rail-stops] [--no-track-test] [--no-table-support] "
+          "[--ramp] [--junction-refit DEG] [--refine-poses] [--no-rail-stops] [--no-track-test] [--no-table-support] "
           "[--no-second-round] [--no-adjusted-test] [--rail-repeatability MM] [--list-points-over PX] [--json FILE] "
           "[--out DIR]\n");
       return 2;
@@ -185,6 +187,7 @@ int Main(int argc, char** argv) {
       if (elevation_deg > 0) o.elevation_deg = elevation_deg;
       if (distance_mm > 0) o.view_distance_mm = distance_mm;
       o.structure.features.empl.photometric_flat_band = flat_band;
+      o.structure.features.empl.photometric_ramp = ramp;
       o.structure.features.empl.junction_refit_angle_deg = junction_refit_deg;
       o.structure.bundle_adjustment.refine_poses = refine_poses;
       if (!rail_stops) o.structure.bundle_adjustment.mount_prior_mm = 0;
