@@ -359,6 +359,10 @@ void SectionB(bool quick) {
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
   const CameraModel cam = FlatCamera(192, 192);
   auto det = FeatureDetector::Create(FeatureOptions{});
+  FeatureOptions flat_options;
+  flat_options.empl.photometric_flat_band = true;
+  flat_options.empl.photometric_ramp = true;
+  auto det_flat = FeatureDetector::Create(flat_options);
   // LSD's systematic coordinate shift, measured on noise-free L-corners.
   Vec2d lsd_shift = Vec2d::Zero();
   {
@@ -386,8 +390,8 @@ void SectionB(bool quick) {
   const int trials = quick ? 15 : 60;
   for (const std::string type : {"L", "T", "X"}) {
     for (const Cfg& c : cfgs) {
-      Stats s_idi, s_csp, s_lsd;
-      Vec2d b_idi = Vec2d::Zero(), b_csp = Vec2d::Zero(), b_lsd = Vec2d::Zero();
+      Stats s_idi, s_flat, s_csp, s_lsd;
+      Vec2d b_idi = Vec2d::Zero(), b_flat = Vec2d::Zero(), b_csp = Vec2d::Zero(), b_lsd = Vec2d::Zero();
       double bound2 = 0;
       std::mt19937 rng(static_cast<unsigned>(c.ratio * 11 + c.blur + type[0]));
       std::uniform_real_distribution<double> u(-1, 1);
@@ -397,14 +401,18 @@ void SectionB(bool quick) {
         const cv::Mat img = Render(FlatScene(cam, j.bg, j.polys), cam, c.blur, sn, 500 + static_cast<std::uint64_t>(t));
         // Bound: lines of their visible lengths (T: the stem has contrast/2 on one side... use its own).
         bound2 += JunctionBoundTrace(j, (type == "T") ? c.a * 0.5 : c.a, sn, c.blur);
-        // IDI.
-        ++s_idi.trials;
-        if (auto r = det->Detect(img); r.ok()) {
-          double bd = 0;
-          if (const IdiPoint* best = NearestPoint(*r, j.truth, 3.0, &bd)) {
-            ++s_idi.found;
-            s_idi.Add(bd);
-            b_idi += best->xy - j.truth;
+        // IDI, with the default options and with the flat photometric band and its ramp.
+        for (const bool flat : {false, true}) {
+          Stats& s = flat ? s_flat : s_idi;
+          Vec2d& b = flat ? b_flat : b_idi;
+          ++s.trials;
+          if (auto r = (flat ? *det_flat : *det).Detect(img); r.ok()) {
+            double bd = 0;
+            if (const IdiPoint* best = NearestPoint(*r, j.truth, 3.0, &bd)) {
+              ++s.found;
+              s.Add(bd);
+              b += best->xy - j.truth;
+            }
           }
         }
         // cornerSubPix.
@@ -437,6 +445,7 @@ void SectionB(bool quick) {
                     c.ratio, c.blur, name, s.trials, s.Rate(), s.Rms(), bias.x() / n, bias.y() / n, bound, s.Rms() / bound);
       };
       row("IDI point", s_idi, b_idi);
+      row("IDI point (flat band, ramp)", s_flat, b_flat);
       row("cornerSubPix 11x11", s_csp, b_csp);
       row("LSD intersection", s_lsd, b_lsd);
       std::fflush(stdout);
@@ -689,6 +698,21 @@ Rigid3d LookAt(const Vec3d& eye, const Vec3d& target) {
 
 // ---- D: object scenes ----------------------------------------------------------------------------
 
+// The signed offset error at the middle of each true line of 60 px and more with 20 DN or more contrast
+// that the detector found (pixel coordinates: for images without distortion).
+std::vector<std::pair<const sim::TruthLine*, double>> LineOffsetsAtMiddle(const sim::GroundTruth& truth,
+                                                                          const FeatureResult& r) {
+  std::vector<std::pair<const sim::TruthLine*, double>> out;
+  for (const sim::TruthLine& tl : truth.lines) {
+    if (tl.length_px < 60 || std::fabs(tl.contrast_dn) < 20) continue;
+    if (const EmplLine* l = test::MatchTruthLine(r, tl.normal, tl.p1_px, tl.p2_px)) {
+      const Vec2d mid = 0.5 * (tl.p1_px + tl.p2_px);
+      out.push_back({&tl, l->SignedDistance(mid) * (l->normal.dot(tl.normal) > 0 ? -1 : 1)});
+    }
+  }
+  return out;
+}
+
 // FEATURES_BENCH_VERBOSE: each long line's offset error, each missed corner with its lines (found or
 // not, and how far the found segment stops from the corner), each spurious point with its lines.
 void PrintCornerDetails(const sim::GroundTruth& truth,
@@ -698,16 +722,12 @@ void PrintCornerDetails(const sim::GroundTruth& truth,
   std::map<int, const sim::TruthLine*> lines;
   for (const sim::TruthLine& l : truth.lines) lines[l.id] = &l;
   if (line_offsets) {
-    for (const sim::TruthLine& tl : truth.lines) {
-      if (tl.length_px < 60 || std::fabs(tl.contrast_dn) < 20) continue;
-      if (const EmplLine* l = test::MatchTruthLine(r, tl.normal, tl.p1_px, tl.p2_px)) {
-        const Vec2d mid = 0.5 * (tl.p1_px + tl.p2_px);
-        std::printf("  line %s len %.0f contrast %.0f: offset diff at mid %+.3f px\n",
-                    tl.object.c_str(),
-                    tl.length_px,
-                    tl.contrast_dn,
-                    l->SignedDistance(mid) * (l->normal.dot(tl.normal) > 0 ? -1 : 1));
-      }
+    for (const auto& [tl, offset] : LineOffsetsAtMiddle(truth, r)) {
+      std::printf("  line %s len %.0f contrast %.0f: offset diff at mid %+.3f px\n",
+                  tl->object.c_str(),
+                  tl->length_px,
+                  tl->contrast_dn,
+                  offset);
     }
   }
   std::vector<Vec2d> all_junctions;
@@ -791,6 +811,12 @@ void SectionD(bool quick) {
   };
   const std::vector<Cfg> cfgs = {{false, false, 1}, {true, false, 1}, {true, true, 1}, {true, false, 2}};
   std::vector<test::CornerScore> scores(cfgs.size());
+  // |offset error| at the middle of the long lines, default options and with the flat band and ramp
+  // (rows without distortion).
+  std::vector<std::array<std::vector<double>, 2>> offsets(cfgs.size());
+  FeatureOptions flat_options;
+  flat_options.empl.photometric_flat_band = true;
+  flat_options.empl.photometric_ramp = true;
   const bool verbose = std::getenv("FEATURES_BENCH_VERBOSE") != nullptr;
   const int scenes = quick ? 3 : 12;
   for (std::size_t ci = 0; ci < cfgs.size(); ++ci) {
@@ -804,6 +830,7 @@ void SectionD(bool quick) {
       cam.params[kK2] = 0.05;
     }
     auto det = FeatureDetector::Create(FeatureOptions{}, c.distortion ? std::optional<CameraModel>(cam) : std::nullopt);
+    auto det_flat = FeatureDetector::Create(flat_options);
     std::mt19937 rng(c.clutter * 10 + c.distortion * 100 + static_cast<unsigned>(c.blur));
     for (int k = 0; k < scenes; ++k) {
       const sim::Scene scene = test::RandomObjectScene(rng, c.clutter);
@@ -821,6 +848,12 @@ void SectionD(bool quick) {
       }
       auto r = det->Detect(*img);
       if (!r.ok()) continue;
+      if (!c.distortion) {
+        for (const auto& [tl, e] : LineOffsetsAtMiddle(truth, *r)) offsets[ci][0].push_back(std::fabs(e));
+        if (auto rf = det_flat->Detect(*img); rf.ok()) {
+          for (const auto& [tl, e] : LineOffsetsAtMiddle(truth, *rf)) offsets[ci][1].push_back(std::fabs(e));
+        }
+      }
       // Truth in the coordinates the detector reports (undistorted when distortion is modelled).
       auto to_fit = [&](const Vec2d& px) { return c.distortion ? UndistortPixel(cam, px) : px; };
       scores[ci].Add(test::ScoreCorners(truth, *r, to_fit));
@@ -860,6 +893,32 @@ void SectionD(bool quick) {
                 m.miss_line_not_found,
                 m.miss_segment_short,
                 m.miss_other);
+  }
+  std::printf(
+      "\nLine offsets: |error| at the middle of every true line of >= 60 px and >= 20 DN that was found (rows\n"
+      "without distortion), with the default options and with the photometric fit's flat band and ramp\n"
+      "(EmplOptions::photometric_flat_band, photometric_ramp).\n\n");
+  std::printf(
+      "| clutter | sigma_b | lines | default median px | default 90th px | flat band median px | flat band 90th px "
+      "|\n");
+  std::printf("|---|---|---|---|---|---|---|\n");
+  auto quantile = [](std::vector<double> v, double q) {
+    if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+    std::sort(v.begin(), v.end());
+    return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
+  };
+  for (std::size_t k = 0; k < cfgs.size(); ++k) {
+    if (cfgs[k].distortion) continue;
+    const auto& o = offsets[k];
+    std::printf("| %s | %.0f | %zu / %zu | %.4f | %.4f | %.4f | %.4f |\n",
+                cfgs[k].clutter ? "texture" : "none",
+                cfgs[k].blur,
+                o[0].size(),
+                o[1].size(),
+                quantile(o[0], 0.5),
+                quantile(o[0], 0.9),
+                quantile(o[1], 0.5),
+                quantile(o[1], 0.9));
   }
 }
 
