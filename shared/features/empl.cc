@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <numeric>
+#include <tuple>
 
 namespace idi {
 namespace {
@@ -115,10 +116,13 @@ bool SolvePhotometric(
   std::vector<ChunkAcc> chunks(nc);
   std::vector<MatN> hcc_inv(nc);
   Eigen::Matrix3d s_mat = Eigen::Matrix3d::Identity();
-  double rss = 0, prev_rss = std::numeric_limits<double>::infinity();
-  double prev_theta = theta, prev_e = e, prev_sigma = sigma;
-  std::vector<VecN> prev_lin = lin;
-  Eigen::Matrix3d prev_s = s_mat;
+  double rss = 0;
+  // The estimate before the last step, to go back to when the step raised the residual.
+  struct Saved {
+    double theta, e, sigma, rss;
+    std::vector<VecN> lin;
+    Eigen::Matrix3d s;
+  } prev{theta, e, sigma, std::numeric_limits<double>::infinity(), lin, s_mat};
   double outlier_cut = std::numeric_limits<double>::infinity();
   constexpr double kFlatZ = 4.5;  // Phi(4.5) = 1 - 3.4e-6
   for (int iter = 0; iter < 6; ++iter) {
@@ -168,13 +172,8 @@ bool SolvePhotometric(
       ck.bc.noalias() += x * r;
       rss += r * r;
     }
-    if (rss > prev_rss * (1.0 + 1e-9)) {
-      theta = prev_theta;
-      e = prev_e;
-      sigma = prev_sigma;
-      lin = prev_lin;
-      s_mat = prev_s;
-      rss = prev_rss;
+    if (rss > prev.rss * (1.0 + 1e-9)) {
+      std::tie(theta, e, sigma, rss, lin, s_mat) = std::tie(prev.theta, prev.e, prev.sigma, prev.rss, prev.lin, prev.s);
       break;
     }
     Eigen::Matrix3d schur = hgg;
@@ -194,12 +193,7 @@ bool SolvePhotometric(
     if (!dg.allFinite()) {
       return false;
     }
-    prev_theta = theta;
-    prev_e = e;
-    prev_sigma = sigma;
-    prev_lin = lin;
-    prev_s = schur;
-    prev_rss = rss;
+    prev = {theta, e, sigma, rss, lin, schur};
     for (std::size_t k = 0; k < nc; ++k) {
       lin[k] += hcc_inv[k] * (chunks[k].bc - chunks[k].hcg * dg);
     }
@@ -208,7 +202,7 @@ bool SolvePhotometric(
     sigma = std::clamp(sigma + dg(2), 0.15, 12.0);
     if (iter == 0) {
       outlier_cut = 5.0 * std::sqrt(rss / static_cast<double>(px.size()));
-      prev_rss = std::numeric_limits<double>::infinity();  // the cut changes the residual set
+      prev.rss = std::numeric_limits<double>::infinity();  // the cut changes the residual set
     }
     // Converged when the last step is far below the noise (the step itself is applied).
     if (iter >= 1 && std::fabs(dg(1)) < 1e-3 && std::fabs(dg(0)) < 1e-5 && std::fabs(dg(2)) < 1e-2) {
