@@ -93,6 +93,7 @@ Status EmplOptions::Check() const {
   IDI_RETURN_IF_ERROR(Positive(curve_max_radius_px, "empl.curve_max_radius_px"));
   IDI_RETURN_IF_ERROR(NonNegative(curve_min_sagitta_px, "empl.curve_min_sagitta_px"));
   IDI_RETURN_IF_ERROR(NonNegative(curve_min_sagitta_short_px, "empl.curve_min_sagitta_short_px"));
+  IDI_RETURN_IF_ERROR(NonNegative(curve_end_trim_px, "empl.curve_end_trim_px"));
   IDI_RETURN_IF_ERROR(NonNegative(extension_fraction, "empl.extension_fraction"));
   IDI_RETURN_IF_ERROR(NonNegative(min_extension_px, "empl.min_extension_px"));
   if (!(max_extension_px >= min_extension_px)) {

@@ -551,12 +551,22 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
   // refined (growing only adds to the bend), so it is given up at once instead of refitted.
   bool kinked = false;   // the run bends at one point: it must split (or it is not a line)
   double curve_rss = 0;  // the quadratic's weighted residual sum of squares, from the last curved()
-  const auto curved = [&]() {
+  // Whether a quadratic in the residuals along the run is significant, fitted to the points at least
+  // `trim` px from the run's ends; its weighted residual sum of squares over those points in *rss.
+  const auto bends = [&](double trim, double* rss_out) {
     const Vec2d nn(std::cos(fit.theta), std::sin(fit.theta)), dd(-nn.y(), nn.x());
+    double t_first = 1e18, t_last = -1e18;
+    for (const Vec2d& p : pts) {
+      t_first = std::min(t_first, dd.dot(p - centre));
+      t_last = std::max(t_last, dd.dot(p - centre));
+    }
+    const double lo = t_first + trim, hi = t_last - trim;
     double m[5] = {0, 0, 0, 0, 0}, b[3] = {0, 0, 0};  // sums of w t^k and of w r t^k
     double tmin = 1e18, tmax = -1e18;
+    std::size_t used = 0;
     for (std::size_t i = 0; i < pts.size(); ++i) {
       const double t = dd.dot(pts[i] - centre), r = nn.dot(pts[i] - centre) - fit.e;
+      if (t < lo || t > hi) continue;
       const double w = wts[i], t2 = t * t;
       m[0] += w;
       m[1] += w * t;
@@ -568,18 +578,21 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
       b[2] += w * r * t2;
       tmin = std::min(tmin, t);
       tmax = std::max(tmax, t);
+      ++used;
     }
+    if (trim > 0 && used < 5) return false;  // too little left without the ends to tell
     Eigen::Matrix3d ata;
     ata << m[0], m[1], m[2], m[1], m[2], m[3], m[2], m[3], m[4];
     const Eigen::Vector3d q = ata.ldlt().solve(Eigen::Vector3d(b[0], b[1], b[2]));
     double rss = 0;
     for (std::size_t i = 0; i < pts.size(); ++i) {
       const double t = dd.dot(pts[i] - centre), r = nn.dot(pts[i] - centre) - fit.e;
+      if (t < lo || t > hi) continue;
       const double res = r - (q(0) + q(1) * t + q(2) * t * t);
       rss += wts[i] * res * res;
     }
-    curve_rss = rss;
-    const double var = rss / std::max(1.0, static_cast<double>(pts.size()) - 3.0);
+    *rss_out = rss;
+    const double var = rss / std::max(1.0, static_cast<double>(used) - 3.0);
     const Eigen::Matrix3d inv = ata.inverse();
     const double sigma_c = std::sqrt(std::max(0.0, inv(2, 2) * var));
     const double half = 0.5 * (tmax - tmin);
@@ -590,6 +603,14 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
     const bool splittable = pts.size() >= 2 * static_cast<std::size_t>(ho.min_length_px);
     const double min_sagitta = splittable ? eo.curve_min_sagitta_px : eo.curve_min_sagitta_short_px;
     return q.allFinite() && radius < eo.curve_max_radius_px && sagitta > min_sagitta && std::fabs(q(2)) > 5.0 * sigma_c;
+  };
+  // Curved over the whole run and still curved without its ends (EmplOptions::curve_end_trim_px): the
+  // last pixels of a straight edge before a junction bend towards the other edge, which a short run
+  // cannot tell from an arc.
+  const auto curved = [&]() {
+    if (!bends(0.0, &curve_rss)) return false;
+    double interior_rss = 0;
+    return !(eo.curve_end_trim_px > 0) || bends(eo.curve_end_trim_px, &interior_rss);
   };
   // The best two-piece total least squares fit of the current points (a kink: two edges that nearly
   // line up), from prefix sums of the weighted moments; its break index 0 when the run is too short.
