@@ -6,6 +6,7 @@
 #include <cmath>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <vector>
 
 #include "shared/geometry/rigid3.h"
 
@@ -125,6 +126,41 @@ inline cv::Mat WedgeImage(int w,
         }
       }
       img.at<float>(y, x) = static_cast<float>(dark + (bright - dark) * inside / double(kSub * kSub));
+    }
+  }
+  if (blur > 0) {
+    const int k = 2 * static_cast<int>(std::ceil(4 * blur)) + 1;
+    cv::GaussianBlur(img, img, cv::Size(k, k), blur, blur, cv::BORDER_REPLICATE);
+  }
+  return img;
+}
+
+// A junction of sectors meeting at (cx, cy): sector k spans the directions [angles_rad[k],
+// angles_rad[k + 1]) (the last one wraps to angles_rad[0] + 2 pi; image y down) and has the grey level
+// levels[k]. Each pixel's area is averaged over 16 x 16 samples, then a Gaussian PSF of sigma `blur` px.
+inline cv::Mat JunctionImage(int w,
+                             int h,
+                             double cx,
+                             double cy,
+                             const std::vector<double>& angles_rad,
+                             const std::vector<double>& levels,
+                             double blur) {
+  constexpr int kSub = 16;
+  constexpr double kTwoPi = 2 * 3.14159265358979323846;
+  cv::Mat img(h, w, CV_32F);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      double sum = 0;
+      for (int j = 0; j < kSub; ++j) {
+        for (int i = 0; i < kSub; ++i) {
+          double a = std::atan2(y - 0.5 + (j + 0.5) / kSub - cy, x - 0.5 + (i + 0.5) / kSub - cx) - angles_rad[0];
+          a -= kTwoPi * std::floor(a / kTwoPi);
+          std::size_t k = 0;
+          while (k + 1 < angles_rad.size() && a >= angles_rad[k + 1] - angles_rad[0]) ++k;
+          sum += levels[k];
+        }
+      }
+      img.at<float>(y, x) = static_cast<float>(sum / (kSub * kSub));
     }
   }
   if (blur > 0) {

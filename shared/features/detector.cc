@@ -96,6 +96,7 @@ Status EmplOptions::Check() const {
   IDI_RETURN_IF_ERROR(NonNegative(curve_end_trim_px, "empl.curve_end_trim_px"));
   IDI_RETURN_IF_ERROR(NonNegative(extension_fraction, "empl.extension_fraction"));
   IDI_RETURN_IF_ERROR(NonNegative(min_extension_px, "empl.min_extension_px"));
+  IDI_RETURN_IF_ERROR(NonNegative(min_extension_blur_sigmas, "empl.min_extension_blur_sigmas"));
   if (!(max_extension_px >= min_extension_px)) {
     return InvalidArgument("empl.max_extension_px must be >= empl.min_extension_px");
   }

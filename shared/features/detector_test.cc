@@ -182,6 +182,9 @@ TEST(DetectorTest, BadInputAndBadOptionsAreRejected) {
   o = FeatureOptions{};
   o.empl.curve_end_trim_px = std::nan("");
   EXPECT_NE(o.Check().message().find("empl.curve_end_trim_px"), std::string::npos) << o.Check().message();
+  o = FeatureOptions{};
+  o.empl.min_extension_blur_sigmas = -1;
+  EXPECT_NE(o.Check().message().find("empl.min_extension_blur_sigmas"), std::string::npos) << o.Check().message();
   CameraModel cam;
   cam.params[kK1] = 0.1;
   auto det = FeatureDetector::Create(FeatureOptions{}, cam);

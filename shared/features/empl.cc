@@ -279,14 +279,18 @@ bool NearAvoided(const EmplRequest& request, const Vec2d& p) {
 
 }  // namespace
 
-double ExtensionLength(const EmplOptions& o, double length_px) {
-  return std::clamp(o.extension_fraction * length_px, o.min_extension_px, o.max_extension_px);
+double ExtensionLength(const EmplOptions& o, double length_px, double blur_sigma_px) {
+  const double least = std::max(o.min_extension_px, o.min_extension_blur_sigmas * std::max(0.0, blur_sigma_px));
+  return std::clamp(o.extension_fraction * length_px, std::min(least, o.max_extension_px), o.max_extension_px);
 }
 
-void SetLineGeometry(double theta, double e, const Vec2d& centre, const Eigen::Matrix2d& cov_theta_e, double t0,
-                     double t1, const EmplOptions& options, EmplFitResult* result) {
-  (void)t0;
-  (void)t1;
+void SetLineGeometry(double theta,
+                     double e,
+                     const Vec2d& centre,
+                     const Eigen::Matrix2d& cov_theta_e,
+                     double blur_sigma_px,
+                     const EmplOptions& options,
+                     EmplFitResult* result) {
   EmplLine& line = result->line;
   Vec2d n(std::cos(theta), std::sin(theta));
   double d = n.dot(centre) + e;
@@ -312,7 +316,7 @@ void SetLineGeometry(double theta, double e, const Vec2d& centre, const Eigen::M
   line.p2 = b;
   line.length_px = (b - a).norm();
   const Vec2d u = line.length_px > 0 ? Vec2d((b - a) / line.length_px) : dir;
-  const double ext = ExtensionLength(options, line.length_px);
+  const double ext = ExtensionLength(options, line.length_px, blur_sigma_px);
   line.extension1 = a - ext * u;
   line.extension2 = b + ext * u;
   result->t0 = dir.dot(a - foot);
@@ -942,7 +946,12 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
       e = fit.e;
     }
   }
-  SetLineGeometry(theta, e, centre, cov, ta, tb, eo, &result);
+  // The edge's blur for the extension: the photometric fit's, or else the gradient profile's.
+  const double s_smooth = g_.smoothing_sigma_px;
+  const double edge_sigma = result.photometric
+                                ? result.line.blur_sigma_px
+                                : std::sqrt(std::max(0.09, prof_sigma * prof_sigma - s_smooth * s_smooth - 1.0 / 3.0));
+  SetLineGeometry(theta, e, centre, cov, edge_sigma, eo, &result);
   // Station RMS against the final line.
   double sr = 0;
   for (const Vec2d& q : pts) {

@@ -69,12 +69,19 @@ class EmplFitter {
   double cos_tol_;
 };
 
-// Unconfirmed extension length for a confirmed segment of `length_px` (§8.8.2).
-double ExtensionLength(const EmplOptions& options, double length_px);
+// Unconfirmed extension length for a confirmed segment of `length_px` (§8.8.2) of an edge blurred by
+// `blur_sigma_px` (EmplLine::blur_sigma_px; 0 when unknown).
+double ExtensionLength(const EmplOptions& options, double length_px, double blur_sigma_px = 0);
 
-// Fills the line's normal/offset/ends from (theta, e) about a centre and the extent [t0, t1]; the
-// angle is normalised to [0, pi) and the covariance of (theta, e) is carried to (angle, offset).
-void SetLineGeometry(double theta, double e, const Vec2d& centre, const Eigen::Matrix2d& cov_theta_e, double t0,
-                     double t1, const EmplOptions& options, EmplFitResult* result);
+// Fills the line's normal/offset/ends from (theta, e) about a centre, with its confirmed ends (line.p1,
+// line.p2) projected onto it and its extensions for an edge of blur `blur_sigma_px`; the angle is
+// normalised to [0, pi) and the covariance of (theta, e) is carried to (angle, offset).
+void SetLineGeometry(double theta,
+                     double e,
+                     const Vec2d& centre,
+                     const Eigen::Matrix2d& cov_theta_e,
+                     double blur_sigma_px,
+                     const EmplOptions& options,
+                     EmplFitResult* result);
 
 }  // namespace idi
