@@ -93,8 +93,8 @@ struct EmplOptions {
   // contrast are then fixed by pixels the edge does not move, and on clean edges of 40 px and more the
   // offset's error falls from 1.2-1.6 to 0.9-1.3 times the Cramer-Rao bound (features_bench section A),
   // IDI points' from 1.3-2.2 to 1.1-1.8 (section B). Off by default: on textured faces the flat image is
-  // not flat. With it, line offsets on the twin's textured object scenes got worse (median 0.017 ->
-  // 0.025 px, 90th percentile 0.048 -> 0.091 px; section D, FEATURES_BENCH_VERBOSE), and the scan
+  // not flat. With it, line offsets on the twin's textured object scenes got worse (median 0.013 ->
+  // 0.023 px, 90th percentile 0.064 -> 0.083 px; section D's line table), and the scan
   // study's corners were better for one seed and worse for another. Its residuals beside the edge do
   // not show the texture (it is smooth and within the noise), so it cannot be screened out that way.
   bool photometric_flat_band = false;
@@ -126,17 +126,18 @@ struct EmplOptions {
   // The curve test is repeated without the points this close to the run's ends, and a run is a curve
   // only when both tests say so: a straight edge between two junctions bends at both ends, and a short
   // run (too short to split) was taken for an arc and dropped. On the twin's object scenes (features_bench
-  // section D) 3 px found 178 -> 180 of 196 corners without clutter and 157 -> 164 of 191 with it, and
-  // as many or fewer spurious points (2 px: 163, 5 px: 164). 0 = test the whole run only.
+  // section D) 3 px found 230 -> 231 of 261 corners without clutter, 218 -> 222 of 255 with it, 202 -> 207
+  // of 234 with distortion, 218 -> 221 of 256 at sigma_b 2; spurious points 2 -> 4 of 255 without
+  // clutter and 5 -> 6 with distortion, the same elsewhere. 0 = test the whole run only.
   double curve_end_trim_px = 3.0;
   // Unconfirmed extension beyond each confirmed end (§8.8.2): fraction of the length, clamped.
   double extension_fraction = 0.1;
   double min_extension_px = 4.0;
   // ... and at least this many times the edge's blur (the photometric fit's, else the gradient
   // profile's): where an edge ends at a junction its last stations fail the threshold over a few blur
-  // widths. On the twin's cluttered object scenes at sigma_b 2 (features_bench D) it found 150 instead of
-  // 129 of 194 corners, spurious points 16 of 190 instead of 14 of 164; at sigma_b 1 (blur ~1.04 px,
-  // so 4 px still rules) nothing changes.
+  // widths. On the twin's cluttered object scenes at sigma_b 2 (features_bench D) it found 221 instead of
+  // 192 of 256 corners, spurious points 1 of 237 either way; at sigma_b 1 (blur ~1.04 px, so 4 px still
+  // rules) nothing changes.
   double min_extension_blur_sigmas = 3.0;
   double max_extension_px = 25.0;
   // Two lines that form a wedge (both run away from their intersection on the same side) at less than

@@ -1,5 +1,6 @@
 #include "tests/support/object_scenes.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <string>
@@ -10,6 +11,52 @@
 namespace idi::test {
 namespace {
 constexpr double kPi = 3.14159265358979323846;
+
+// The solid's footprint on the table: the convex hull of its vertices' (x, y), counter-clockwise.
+std::vector<Vec2d> Footprint(const sim::Solid& solid) {
+  std::vector<Vec2d> p;
+  for (const Vec3d& v : solid.vertices) p.emplace_back(v.x(), v.y());
+  std::sort(p.begin(), p.end(), [](const Vec2d& a, const Vec2d& b) {
+    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
+  });
+  const auto cross = [](const Vec2d& o, const Vec2d& a, const Vec2d& b) {
+    return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+  };
+  std::vector<Vec2d> hull(2 * p.size());
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {  // Andrew's monotone chain
+    while (k >= 2 && cross(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
+    hull[k++] = p[i];
+  }
+  for (std::size_t i = p.size() - 1, t = k + 1; i-- > 0;) {
+    while (k >= t && cross(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
+    hull[k++] = p[i];
+  }
+  hull.resize(k > 1 ? k - 1 : k);
+  return hull;
+}
+
+// Whether two convex footprints come closer than `gap` (separating axis test on their edge normals).
+bool Overlap(const std::vector<Vec2d>& a, const std::vector<Vec2d>& b, double gap) {
+  for (const std::vector<Vec2d>* poly : {&a, &b}) {
+    for (std::size_t i = 0; i < poly->size(); ++i) {
+      const Vec2d e = (*poly)[(i + 1) % poly->size()] - (*poly)[i];
+      const Vec2d n = Vec2d(e.y(), -e.x()).normalized();
+      double amin = 1e18, amax = -1e18, bmin = 1e18, bmax = -1e18;
+      for (const Vec2d& q : a) {
+        amin = std::min(amin, n.dot(q));
+        amax = std::max(amax, n.dot(q));
+      }
+      for (const Vec2d& q : b) {
+        bmin = std::min(bmin, n.dot(q));
+        bmax = std::max(bmax, n.dot(q));
+      }
+      if (amax + gap <= bmin || bmax + gap <= amin) return false;
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 sim::Scene RandomObjectScene(std::mt19937& rng, bool clutter) {
@@ -28,8 +75,11 @@ sim::Scene RandomObjectScene(std::mt19937& rng, bool clutter) {
   s.solids.push_back(sim::MakeRectangle("table", Vec3d(0, 0, 0), Vec3d::UnitX(), Vec3d::UnitY(), 2000, 2000, table));
   s.solids.push_back(sim::MakeRectangle("wall", Vec3d(0, 900, 600), Vec3d::UnitX(), Vec3d::UnitZ(), 2000, 600, wall));
   const int n = 3 + static_cast<int>(u(rng) * 3);
+  // Objects stand apart on the table (at least 10 mm between footprints): solids that interpenetrate
+  // make edges and junctions where their faces cut each other, which no mesh edge describes, so the
+  // ground truth would not have them. A placement that overlaps is drawn again (up to 100 times).
+  std::vector<std::vector<Vec2d>> footprints;
   for (int k = 0; k < n; ++k) {
-    const Rigid3d pose = Translation(-350 + 700 * u(rng), -250 + 500 * u(rng), 0.0) * RotZ(u(rng) * kPi);
     const double alb = 0.5 + 0.45 * u(rng);
     const std::vector<sim::Material> faces = {sim::Gray(alb),
                                               sim::Gray(alb * 0.9),
@@ -38,17 +88,27 @@ sim::Scene RandomObjectScene(std::mt19937& rng, bool clutter) {
                                               sim::Gray(alb * 0.85),
                                               sim::Gray(alb * 0.95)};
     const int kind = static_cast<int>(u(rng) * 3);
-    if (kind == 0) {
-      s.solids.push_back(sim::MakeBox("box" + std::to_string(k),
-                                      pose,
-                                      Vec3d(120 + 100 * u(rng), 100 + 80 * u(rng), 60 + 80 * u(rng)),
-                                      sim::Gray(alb),
-                                      faces));
-    } else if (kind == 1) {
-      s.solids.push_back(sim::MakeTriangularPrism(
-          "prism" + std::to_string(k), pose, 150, 90, 160, 20 * (u(rng) - 0.5), sim::Gray(alb)));
-    } else {
-      s.solids.push_back(sim::MakeLBracket("bracket" + std::to_string(k), pose, 160, 110, 120, 25, sim::Gray(alb)));
+    const Vec3d box_size(120 + 100 * u(rng), 100 + 80 * u(rng), 60 + 80 * u(rng));
+    const double prism_skew = 20 * (u(rng) - 0.5);
+    for (int attempt = 0; attempt < 100; ++attempt) {
+      const Rigid3d pose = Translation(-350 + 700 * u(rng), -250 + 500 * u(rng), 0.0) * RotZ(u(rng) * kPi);
+      sim::Solid solid;
+      if (kind == 0) {
+        solid = sim::MakeBox("box" + std::to_string(k), pose, box_size, sim::Gray(alb), faces);
+      } else if (kind == 1) {
+        solid = sim::MakeTriangularPrism("prism" + std::to_string(k), pose, 150, 90, 160, prism_skew, sim::Gray(alb));
+      } else {
+        solid = sim::MakeLBracket("bracket" + std::to_string(k), pose, 160, 110, 120, 25, sim::Gray(alb));
+      }
+      std::vector<Vec2d> footprint = Footprint(solid);
+      if (std::any_of(footprints.begin(), footprints.end(), [&](const std::vector<Vec2d>& f) {
+            return Overlap(f, footprint, 10.0);
+          })) {
+        continue;
+      }
+      footprints.push_back(std::move(footprint));
+      s.solids.push_back(std::move(solid));
+      break;
     }
   }
   return s;

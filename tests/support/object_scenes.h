@@ -13,7 +13,8 @@
 namespace idi::test {
 
 // A random scene (the same for the same generator state). `clutter`: value-noise texture on the table
-// and the wall. Scene units are mm; the objects stand within 350 mm of the origin.
+// and the wall. Scene units are mm; the objects stand within 350 mm of the origin, 10 mm or more apart
+// (no two solids interpenetrate).
 sim::Scene RandomObjectScene(std::mt19937& rng, bool clutter);
 
 // IDI points of one image against its ground truth.
