@@ -126,17 +126,20 @@ struct EmplOptions {
   // The curve test is repeated without the points this close to the run's ends, and a run is a curve
   // only when both tests say so: a straight edge between two junctions bends at both ends, and a short
   // run (too short to split) was taken for an arc and dropped. On the twin's object scenes (features_bench
-  // section D) 3 px found 230 -> 231 of 261 corners without clutter, 218 -> 222 of 255 with it, 202 -> 207
-  // of 234 with distortion, 218 -> 221 of 256 at sigma_b 2; spurious points 2 -> 4 of 255 without
+  // section D) 3 px found 235 -> 236 of 261 corners without clutter, 222 -> 226 of 255 with it, 202 -> 207
+  // of 234 with distortion, 218 -> 221 of 256 at sigma_b 2; spurious points 2 -> 4 of 261 without
   // clutter and 5 -> 6 with distortion, the same elsewhere. 0 = test the whole run only.
   double curve_end_trim_px = 3.0;
   // Unconfirmed extension beyond each confirmed end (§8.8.2): fraction of the length, clamped.
   double extension_fraction = 0.1;
-  double min_extension_px = 4.0;
+  // 5 px rather than 4: a segment that stops 4.1 px short of its corner (the last stations fail the
+  // threshold) missed it. On the object scenes 4 -> 5 px found 231 -> 236 of 261, 222 -> 226 of 255 and
+  // 207 -> 207 of 234 corners at sigma_b 1, with the same spurious points (4, 6, 6).
+  double min_extension_px = 5.0;
   // ... and at least this many times the edge's blur (the photometric fit's, else the gradient
   // profile's): where an edge ends at a junction its last stations fail the threshold over a few blur
   // widths. On the twin's cluttered object scenes at sigma_b 2 (features_bench D) it found 221 instead of
-  // 192 of 256 corners, spurious points 1 of 237 either way; at sigma_b 1 (blur ~1.04 px, so 4 px still
+  // 213 of 256 corners, spurious points 1 either way; at sigma_b 1 (blur ~1.04 px, so min_extension_px
   // rules) nothing changes.
   double min_extension_blur_sigmas = 3.0;
   double max_extension_px = 25.0;
