@@ -99,9 +99,32 @@ inline cv::Mat CornerImage(int w, int h, double cx, double cy, double dark, doub
   return img;
 }
 
+// The mean of level(q) over each pixel's area (16 x 16 samples q in image coordinates), then a Gaussian
+// PSF of sigma `blur` px. Edge positions are good to about 0.005 px, enough for tests at the 0.05 px level.
+template <typename Level>
+cv::Mat AreaMeanImage(int w, int h, const Level& level, double blur) {
+  constexpr int kSub = 16;
+  cv::Mat img(h, w, CV_32F);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      double sum = 0;
+      for (int j = 0; j < kSub; ++j) {
+        for (int i = 0; i < kSub; ++i) {
+          sum += level(Vec2d(x - 0.5 + (i + 0.5) / kSub, y - 0.5 + (j + 0.5) / kSub));
+        }
+      }
+      img.at<float>(y, x) = static_cast<float>(sum / (kSub * kSub));
+    }
+  }
+  if (blur > 0) {
+    const int k = 2 * static_cast<int>(std::ceil(4 * blur)) + 1;
+    cv::GaussianBlur(img, img, cv::Size(k, k), blur, blur, cv::BORDER_REPLICATE);
+  }
+  return img;
+}
+
 // A wedge of opening `angle_rad` with its apex at (ax, ay), opening along the direction `bisector_rad`,
-// in `bright` on `dark`: each pixel's area coverage (16 x 16 samples), then a Gaussian PSF of sigma
-// `blur` px. Edge positions are good to about 0.005 px, enough for tests at the 0.05 px level.
+// in `bright` on `dark` (AreaMeanImage).
 inline cv::Mat WedgeImage(int w,
                           int h,
                           double ax,
@@ -114,30 +137,14 @@ inline cv::Mat WedgeImage(int w,
   const double a1 = bisector_rad - 0.5 * angle_rad, a2 = bisector_rad + 0.5 * angle_rad;
   // Inside: left of the ray along a1 and right of the ray along a2 (image y down).
   const Vec2d n1(-std::sin(a1), std::cos(a1)), n2(std::sin(a2), -std::cos(a2));
-  constexpr int kSub = 16;
-  cv::Mat img(h, w, CV_32F);
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) {
-      int inside = 0;
-      for (int j = 0; j < kSub; ++j) {
-        for (int i = 0; i < kSub; ++i) {
-          const Vec2d q(x - 0.5 + (i + 0.5) / kSub - ax, y - 0.5 + (j + 0.5) / kSub - ay);
-          inside += (n1.dot(q) > 0 && n2.dot(q) > 0) ? 1 : 0;
-        }
-      }
-      img.at<float>(y, x) = static_cast<float>(dark + (bright - dark) * inside / double(kSub * kSub));
-    }
-  }
-  if (blur > 0) {
-    const int k = 2 * static_cast<int>(std::ceil(4 * blur)) + 1;
-    cv::GaussianBlur(img, img, cv::Size(k, k), blur, blur, cv::BORDER_REPLICATE);
-  }
-  return img;
+  const Vec2d apex(ax, ay);
+  return AreaMeanImage(
+      w, h, [&](const Vec2d& q) { return n1.dot(q - apex) > 0 && n2.dot(q - apex) > 0 ? bright : dark; }, blur);
 }
 
 // A junction of sectors meeting at (cx, cy): sector k spans the directions [angles_rad[k],
 // angles_rad[k + 1]) (the last one wraps to angles_rad[0] + 2 pi; image y down) and has the grey level
-// levels[k]. Each pixel's area is averaged over 16 x 16 samples, then a Gaussian PSF of sigma `blur` px.
+// levels[k] (AreaMeanImage).
 inline cv::Mat JunctionImage(int w,
                              int h,
                              double cx,
@@ -145,29 +152,15 @@ inline cv::Mat JunctionImage(int w,
                              const std::vector<double>& angles_rad,
                              const std::vector<double>& levels,
                              double blur) {
-  constexpr int kSub = 16;
   constexpr double kTwoPi = 2 * 3.14159265358979323846;
-  cv::Mat img(h, w, CV_32F);
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) {
-      double sum = 0;
-      for (int j = 0; j < kSub; ++j) {
-        for (int i = 0; i < kSub; ++i) {
-          double a = std::atan2(y - 0.5 + (j + 0.5) / kSub - cy, x - 0.5 + (i + 0.5) / kSub - cx) - angles_rad[0];
-          a -= kTwoPi * std::floor(a / kTwoPi);
-          std::size_t k = 0;
-          while (k + 1 < angles_rad.size() && a >= angles_rad[k + 1] - angles_rad[0]) ++k;
-          sum += levels[k];
-        }
-      }
-      img.at<float>(y, x) = static_cast<float>(sum / (kSub * kSub));
-    }
-  }
-  if (blur > 0) {
-    const int k = 2 * static_cast<int>(std::ceil(4 * blur)) + 1;
-    cv::GaussianBlur(img, img, cv::Size(k, k), blur, blur, cv::BORDER_REPLICATE);
-  }
-  return img;
+  const auto level = [&](const Vec2d& q) {
+    double a = std::atan2(q.y() - cy, q.x() - cx) - angles_rad[0];
+    a -= kTwoPi * std::floor(a / kTwoPi);
+    std::size_t k = 0;
+    while (k + 1 < angles_rad.size() && a >= angles_rad[k + 1] - angles_rad[0]) ++k;
+    return levels[k];
+  };
+  return AreaMeanImage(w, h, level, blur);
 }
 
 // Adds white Gaussian noise and quantises to 8 bits (deterministic for a seed).
