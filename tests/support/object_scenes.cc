@@ -6,34 +6,18 @@
 #include <string>
 
 #include "shared/features/idi_points.h"
+#include "shared/grasp/grasp_planner.h"
 #include "shared/sim/render/shapes.h"
 
 namespace idi::test {
 namespace {
 constexpr double kPi = 3.14159265358979323846;
 
-// The solid's footprint on the table: the convex hull of its vertices' (x, y), counter-clockwise.
+// The solid's footprint on the table: the convex hull of its vertices' (x, y).
 std::vector<Vec2d> Footprint(const sim::Solid& solid) {
   std::vector<Vec2d> p;
   for (const Vec3d& v : solid.vertices) p.emplace_back(v.x(), v.y());
-  std::sort(p.begin(), p.end(), [](const Vec2d& a, const Vec2d& b) {
-    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
-  });
-  const auto cross = [](const Vec2d& o, const Vec2d& a, const Vec2d& b) {
-    return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
-  };
-  std::vector<Vec2d> hull(2 * p.size());
-  std::size_t k = 0;
-  for (std::size_t i = 0; i < p.size(); ++i) {  // Andrew's monotone chain
-    while (k >= 2 && cross(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
-    hull[k++] = p[i];
-  }
-  for (std::size_t i = p.size() - 1, t = k + 1; i-- > 0;) {
-    while (k >= t && cross(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
-    hull[k++] = p[i];
-  }
-  hull.resize(k > 1 ? k - 1 : k);
-  return hull;
+  return ConvexHull2d(std::move(p));
 }
 
 // Whether two convex footprints come closer than `gap` (separating axis test on their edge normals).
