@@ -185,6 +185,11 @@ TEST(DetectorTest, BadInputAndBadOptionsAreRejected) {
   o = FeatureOptions{};
   o.empl.min_extension_blur_sigmas = -1;
   EXPECT_NE(o.Check().message().find("empl.min_extension_blur_sigmas"), std::string::npos) << o.Check().message();
+  o = FeatureOptions{};
+  o.empl.peak_proximity_sigma_px = std::nan("");
+  EXPECT_NE(o.Check().message().find("empl.peak_proximity_sigma_px"), std::string::npos) << o.Check().message();
+  o.empl.peak_proximity_sigma_px = -1;
+  EXPECT_NE(o.Check().message().find("empl.peak_proximity_sigma_px"), std::string::npos) << o.Check().message();
   CameraModel cam;
   cam.params[kK1] = 0.1;
   auto det = FeatureDetector::Create(FeatureOptions{}, cam);

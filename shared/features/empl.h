@@ -67,6 +67,7 @@ class EmplFitter {
   const FeatureOptions& options_;
   std::vector<EmplPixel>* scratch_;
   double cos_tol_;
+  double proximity_;  // 1 / peak_proximity_sigma_px^2, 0 for the strongest peak
 };
 
 // Unconfirmed extension length for a confirmed segment of `length_px` (§8.8.2) of an edge blurred by
