@@ -879,20 +879,28 @@ void SectionD(bool quick) {
   std::printf(
       "\nWhy corners were missed: fewer than two of their lines found (a line within 2 deg and 2 px at its middle),\n");
   std::printf(
-      "or found but fewer than two confirmed segments reach the corner within their extensions, or neither.\n\n");
+      "or found but fewer than two confirmed segments reach the corner within their extensions, or neither.\n"
+      "Across those causes: corners whose lines all meet at less than %.0f deg (a slight bend, usually fitted\n"
+      "as one line; IdiOptions::min_angle_deg makes no point there), and the rate without them.\n\n",
+      test::kNearlyCollinearDeg);
   std::printf(
-      "| clutter | distortion | sigma_b | missed | line not found | segment stops short | other "
-      "|\n|---|---|---|---|---|---|---|\n");
+      "| clutter | distortion | sigma_b | missed | line not found | segment stops short | other | nearly collinear: "
+      "missed / all | rate without them |\n|---|---|---|---|---|---|---|---|---|\n");
   for (std::size_t k = 0; k < cfgs.size(); ++k) {
     const test::CornerScore& m = scores[k];
-    std::printf("| %s | %s | %.0f | %d | %d | %d | %d |\n",
-                cfgs[k].clutter ? "texture" : "none",
-                cfgs[k].distortion ? "k1 -0.18" : "none",
-                cfgs[k].blur,
-                m.total - m.found,
-                m.miss_line_not_found,
-                m.miss_segment_short,
-                m.miss_other);
+    const int rest = m.total - m.nearly_collinear;
+    std::printf(
+        "| %s | %s | %.0f | %d | %d | %d | %d | %d / %d | %.3f |\n",
+        cfgs[k].clutter ? "texture" : "none",
+        cfgs[k].distortion ? "k1 -0.18" : "none",
+        cfgs[k].blur,
+        m.total - m.found,
+        m.miss_line_not_found,
+        m.miss_segment_short,
+        m.miss_other,
+        m.nearly_collinear_missed,
+        m.nearly_collinear,
+        rest > 0 ? static_cast<double>(m.found - (m.nearly_collinear - m.nearly_collinear_missed)) / rest : 0.0);
   }
   std::printf(
       "\nLine offsets: |error| at the middle of every true line of >= 60 px and >= 20 DN that was found (rows\n"

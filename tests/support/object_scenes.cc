@@ -106,6 +106,8 @@ void CornerScore::Add(const CornerScore& o) {
   miss_line_not_found += o.miss_line_not_found;
   miss_segment_short += o.miss_segment_short;
   miss_other += o.miss_other;
+  nearly_collinear += o.nearly_collinear;
+  nearly_collinear_missed += o.nearly_collinear_missed;
   errors_px.insert(errors_px.end(), o.errors_px.begin(), o.errors_px.end());
 }
 
@@ -141,9 +143,24 @@ CornerScore ScoreCorners(const sim::GroundTruth& truth,
     }
     if (good < 2) continue;
     ++s.total;
+    // The widest angle between two of its counted lines.
+    double widest_cos = 1;
+    for (int a : j.lines) {
+      for (int b : j.lines) {
+        const auto ia = lines.find(a), ib = lines.find(b);
+        if (ia == lines.end() || ib == lines.end() || !CountsForCorners(*ia->second) ||
+            !CountsForCorners(*ib->second)) {
+          continue;
+        }
+        widest_cos = std::min(widest_cos, std::fabs(ia->second->normal.dot(ib->second->normal)));
+      }
+    }
+    const bool nearly_collinear = widest_cos > std::cos(kNearlyCollinearDeg * kPi / 180);
+    s.nearly_collinear += nearly_collinear ? 1 : 0;
     const Vec2d t = to_fit(j.xy_px);
     double bd = 2.0;
     for (const IdiPoint& p : result.points) bd = std::min(bd, (p.xy - t).norm());
+    s.nearly_collinear_missed += nearly_collinear && !(bd < 2.0) ? 1 : 0;
     if (bd < 2.0) {
       ++s.found;
       s.errors_px.push_back(bd);

@@ -28,6 +28,11 @@ sim::Scene RandomObjectScene(std::mt19937& rng, bool clutter);
 struct CornerScore {
   int total = 0, found = 0, points = 0, spurious = 0;
   int miss_line_not_found = 0, miss_segment_short = 0, miss_other = 0;
+  // Corners whose counted lines all meet at less than kNearlyCollinearDeg in the image (a slight bend of
+  // a silhouette): how many there are and how many of them were missed. The detector makes no point
+  // from lines at less than IdiOptions::min_angle_deg (10 by default), and such a bend is usually fitted
+  // as one line.
+  int nearly_collinear = 0, nearly_collinear_missed = 0;
   std::vector<double> errors_px;  // of the found corners
 
   void Add(const CornerScore& o);
@@ -36,6 +41,8 @@ struct CornerScore {
 CornerScore ScoreCorners(const sim::GroundTruth& truth,
                          const FeatureResult& result,
                          const std::function<Vec2d(const Vec2d&)>& to_fit);
+
+inline constexpr double kNearlyCollinearDeg = 10.0;
 
 // Whether a true line counts for a corner (visible over >= 20 px with >= 10 DN contrast).
 bool CountsForCorners(const sim::TruthLine& line);
