@@ -269,6 +269,30 @@ TEST(EmplTest, AShallowBendIsTwoLinesWithAPointNotACurve) {
 namespace idi {
 namespace {
 
+// In how many of `images` noisy copies of `clean` (white noise `noise` grey levels, seeds from `seed`,
+// 8 bits) the detector with `options` gives an IDI point within `radius` px of `corner`.
+int CornerFoundIn(const cv::Mat& clean,
+                  double noise,
+                  std::uint64_t seed,
+                  int images,
+                  const FeatureOptions& options,
+                  const Vec2d& corner,
+                  double radius) {
+  int found = 0;
+  for (int k = 0; k < images; ++k) {
+    const auto r = DetectFeatures(analytic::Quantize(clean, noise, seed + static_cast<std::uint64_t>(k)), options);
+    EXPECT_TRUE(r.ok()) << r.status().ToString();
+    if (!r.ok()) continue;
+    for (const IdiPoint& p : r->points) {
+      if ((p.xy - corner).norm() < radius) {
+        ++found;
+        break;
+      }
+    }
+  }
+  return found;
+}
+
 // Where an edge ends at a junction its last stations fail the threshold over a few blur widths; at a
 // blurred junction the confirmed segments stop more than the minimal 5 px short of it, and only
 // extensions that grow with the edge's blur (EmplOptions::min_extension_blur_sigmas) still meet there.
@@ -283,20 +307,8 @@ TEST(EmplTest, ExtensionsGrowWithTheBlurSoBlurredCornersAreFound) {
   const cv::Mat clean =
       analytic::JunctionImage(120, 100, corner.x(), corner.y(), {0.0, 100 * deg, 200 * deg}, {60, 70, 130}, 2.0);
   constexpr int kImages = 20;
-  int found[2] = {0, 0};
-  for (const bool scale : {true, false}) {
-    for (int k = 0; k < kImages; ++k) {
-      const cv::Mat img = analytic::Quantize(clean, 3.0, 700 + static_cast<std::uint64_t>(k));
-      const auto r = DetectFeatures(img, scale ? scaled : fixed);
-      ASSERT_TRUE(r.ok());
-      for (const IdiPoint& p : r->points) {
-        if ((p.xy - corner).norm() < 2.0) {
-          ++found[scale ? 0 : 1];
-          break;
-        }
-      }
-    }
-  }
+  const int found[2] = {CornerFoundIn(clean, 3.0, 700, kImages, scaled, corner, 2.0),
+                        CornerFoundIn(clean, 3.0, 700, kImages, fixed, corner, 2.0)};
   std::printf("blurred junction found in %d of %d images with extensions of 3 blur sigmas, %d with 5 px\n",
               found[0],
               kImages,
@@ -316,7 +328,7 @@ TEST(EmplTest, AStrongEdgeBesideAWeakOneDoesNotTakeItsStations) {
   ASSERT_GT(nearest.empl.peak_proximity_sigma_px, 0);
   const Vec2d corner(60.3, 30.6);
   const double strip = 3.0;  // px
-  // Above the corner's row a bright face; below it, left to right: a lit face, the dark strip, and a
+  // Above the corner's row a face at 125 grey levels; below it, left to right: a lit face, the dark strip, and a
   // grey face 40 grey levels above the strip (the weak edge, tilted 3 degrees). The strong edge's blur
   // still pulls the weak edge's fit about 0.6 px towards it (one blurred step per line is the model),
   // so the corner is only required within 2 px.
@@ -328,20 +340,8 @@ TEST(EmplTest, AStrongEdgeBesideAWeakOneDoesNotTakeItsStations) {
   };
   const cv::Mat clean = analytic::AreaMeanImage(120, 100, level, 1.0);
   constexpr int kImages = 20;
-  int found[2] = {0, 0};
-  for (const bool near : {true, false}) {
-    for (int k = 0; k < kImages; ++k) {
-      const cv::Mat img = analytic::Quantize(clean, 2.0, 800 + static_cast<std::uint64_t>(k));
-      const auto r = DetectFeatures(img, near ? nearest : strongest);
-      ASSERT_TRUE(r.ok());
-      for (const IdiPoint& p : r->points) {
-        if ((p.xy - corner).norm() < 2.0) {
-          ++found[near ? 0 : 1];
-          break;
-        }
-      }
-    }
-  }
+  const int found[2] = {CornerFoundIn(clean, 2.0, 800, kImages, nearest, corner, 2.0),
+                        CornerFoundIn(clean, 2.0, 800, kImages, strongest, corner, 2.0)};
   std::printf("corner beside a thin strip found in %d of %d images with the nearest peak, %d with the strongest\n",
               found[0],
               kImages,
@@ -366,18 +366,7 @@ TEST(EmplTest, AnEdgeWhoseContrastFadesStillReachesItsCorner) {
   };
   const cv::Mat clean = analytic::AreaMeanImage(100, 100, level, 1.0);
   constexpr int kImages = 20;
-  int found = 0;
-  for (int k = 0; k < kImages; ++k) {
-    const auto r =
-        DetectFeatures(analytic::Quantize(clean, 1.5, 900 + static_cast<std::uint64_t>(k)), FeatureOptions{});
-    ASSERT_TRUE(r.ok());
-    for (const IdiPoint& p : r->points) {
-      if ((p.xy - corner).norm() < 1.0) {
-        ++found;
-        break;
-      }
-    }
-  }
+  const int found = CornerFoundIn(clean, 1.5, 900, kImages, FeatureOptions{}, corner, 1.0);
   std::printf("corner at the faint end of an edge found in %d of %d images\n", found, kImages);
   EXPECT_GE(found, 18);
 }
