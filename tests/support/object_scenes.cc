@@ -136,24 +136,18 @@ CornerScore ScoreCorners(const sim::GroundTruth& truth,
   for (const sim::TruthLine& l : truth.lines) lines[l.id] = &l;
   for (const sim::TruthJunction& j : truth.junctions) {
     if (!j.is_vertex || j.type == "tangent") continue;
-    int good = 0;
+    // Its lines that count for a corner (visible and contrasted enough).
+    std::vector<const sim::TruthLine*> counted;
     for (int id : j.lines) {
-      auto it = lines.find(id);
-      if (it != lines.end() && CountsForCorners(*it->second)) ++good;
+      const auto it = lines.find(id);
+      if (it != lines.end() && CountsForCorners(*it->second)) counted.push_back(it->second);
     }
-    if (good < 2) continue;
+    if (counted.size() < 2) continue;
     ++s.total;
-    // The widest angle between two of its counted lines.
+    // The widest angle between two of them.
     double widest_cos = 1;
-    for (int a : j.lines) {
-      for (int b : j.lines) {
-        const auto ia = lines.find(a), ib = lines.find(b);
-        if (ia == lines.end() || ib == lines.end() || !CountsForCorners(*ia->second) ||
-            !CountsForCorners(*ib->second)) {
-          continue;
-        }
-        widest_cos = std::min(widest_cos, std::fabs(ia->second->normal.dot(ib->second->normal)));
-      }
+    for (const sim::TruthLine* a : counted) {
+      for (const sim::TruthLine* b : counted) widest_cos = std::min(widest_cos, std::fabs(a->normal.dot(b->normal)));
     }
     const bool nearly_collinear = widest_cos > std::cos(kNearlyCollinearDeg * kPi / 180);
     s.nearly_collinear += nearly_collinear ? 1 : 0;
@@ -167,10 +161,8 @@ CornerScore ScoreCorners(const sim::GroundTruth& truth,
       continue;
     }
     int matched = 0, reaching = 0;
-    for (int id : j.lines) {
-      auto it = lines.find(id);
-      if (it == lines.end() || !CountsForCorners(*it->second)) continue;
-      const sim::TruthLine& tl = *it->second;
+    for (const sim::TruthLine* line : counted) {
+      const sim::TruthLine& tl = *line;
       if (const EmplLine* l = MatchTruthLine(result, tl.normal, to_fit(tl.p1_px), to_fit(tl.p2_px))) {
         ++matched;
         reaching += DistanceBeyondSegment(*l, t) <= (l->extension1 - l->p1).norm() ? 1 : 0;
