@@ -95,6 +95,7 @@ Status EmplOptions::Check() const {
   IDI_RETURN_IF_ERROR(NonNegative(curve_min_sagitta_short_px, "empl.curve_min_sagitta_short_px"));
   IDI_RETURN_IF_ERROR(NonNegative(curve_end_trim_px, "empl.curve_end_trim_px"));
   IDI_RETURN_IF_ERROR(NonNegative(peak_proximity_sigma_px, "empl.peak_proximity_sigma_px"));
+  IDI_RETURN_IF_ERROR(NonNegative(flat_band_max_texture_ratio, "empl.flat_band_max_texture_ratio"));
   IDI_RETURN_IF_ERROR(NonNegative(extension_fraction, "empl.extension_fraction"));
   IDI_RETURN_IF_ERROR(NonNegative(min_extension_px, "empl.min_extension_px"));
   IDI_RETURN_IF_ERROR(NonNegative(min_extension_blur_sigmas, "empl.min_extension_blur_sigmas"));

@@ -190,6 +190,11 @@ TEST(DetectorTest, BadInputAndBadOptionsAreRejected) {
   EXPECT_NE(o.Check().message().find("empl.peak_proximity_sigma_px"), std::string::npos) << o.Check().message();
   o.empl.peak_proximity_sigma_px = -1;
   EXPECT_NE(o.Check().message().find("empl.peak_proximity_sigma_px"), std::string::npos) << o.Check().message();
+  o = FeatureOptions{};
+  o.empl.flat_band_max_texture_ratio = std::nan("");
+  EXPECT_NE(o.Check().message().find("empl.flat_band_max_texture_ratio"), std::string::npos) << o.Check().message();
+  o.empl.flat_band_max_texture_ratio = -0.5;
+  EXPECT_NE(o.Check().message().find("empl.flat_band_max_texture_ratio"), std::string::npos) << o.Check().message();
   CameraModel cam;
   cam.params[kK1] = 0.1;
   auto det = FeatureDetector::Create(FeatureOptions{}, cam);

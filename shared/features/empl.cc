@@ -337,6 +337,7 @@ EmplFitter::EmplFitter(const GradientImages& g,
       options_(options),
       scratch_(scratch),
       cos_tol_(std::cos(options.empl.max_angle_error_deg * kEmplPi / 180.0)),
+      noise_gain_(GradientNoiseGain(g.smoothing_sigma_px)),
       proximity_(options.empl.peak_proximity_sigma_px > 0
                      ? 1.0 / (options.empl.peak_proximity_sigma_px * options.empl.peak_proximity_sigma_px)
                      : 0.0) {}
@@ -1007,6 +1008,10 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
   double last_t = -1e18;
   const int chunk_len = std::max(4, static_cast<int>(eo.chunk_length_px));
   int stations_used = 0;
+  static thread_local std::vector<std::uint8_t> side_of;
+  side_of.clear();
+  double high[2] = {0, 0}, smooth[2] = {0, 0}, mean_gx[2] = {0, 0}, mean_gy[2] = {0, 0};
+  int counted[2] = {0, 0};
   // Near a confirmed end the edge fades into a corner over a few blur widths.
   const double end_margin = std::max(eo.end_margin_px, 1.5 * sigma);
   for (std::size_t i = begin; i < end; ++i) {
@@ -1060,6 +1065,51 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
       const int y = s.horizontal ? s.minor_base + k : s.major;
       const Vec2d u = geometry_.ToFit(x, y) - centre;
       px.push_back({static_cast<float>(u.x()), static_cast<float>(u.y()), g_.raw.at<float>(y, x), chunk, 1.0f});
+      const int side = k < -half ? 1 : k > half ? 2 : 0;
+      side_of.push_back(static_cast<std::uint8_t>(side));
+      if (side != 0 && x > 0 && y > 0 && x < w - 1 && y < h - 1) {
+        const float* a = g_.raw.ptr<float>(y - 1);
+        const float* b = g_.raw.ptr<float>(y);
+        const float* c = g_.raw.ptr<float>(y + 1);
+        const double r =
+            (a[x - 1] - 2 * a[x] + a[x + 1]) - 2 * (b[x - 1] - 2 * b[x] + b[x + 1]) + (c[x - 1] - 2 * c[x] + c[x + 1]);
+        high[side - 1] += r * r;
+        smooth[side - 1] += g_.mag2.at<float>(y, x);
+        mean_gx[side - 1] += g_.gx.at<float>(y, x);
+        mean_gy[side - 1] += g_.gy.at<float>(y, x);
+        counted[side - 1] += 1;
+      }
+    }
+  }
+  // The flat band on a side is kept only where the image there is flat but for the noise (and a
+  // uniform shading ramp): texture, and the blur tails of other edges, raise the energy of the smoothed
+  // gradient's variation there while the high-pass energy of the same pixels (Immerkaer's mask
+  // [1 -2 1; -2 4 -2; 1 -2 1], blind to smooth shading) stays that of the noise. For white noise
+  // sigma, E[|g - mean g|^2] = 2 (gain sigma)^2 and E[r^2] = 36 sigma^2.
+  if (eo.photometric_flat_band && eo.flat_band_max_texture_ratio > 0) {
+    bool drop[2] = {false, false};
+    for (int sd = 0; sd < 2; ++sd) {
+      if (counted[sd] == 0) continue;
+      // The side's mean gradient is a shading ramp (the ramp parameter's business), not texture.
+      const double nc = counted[sd];
+      const double varying = smooth[sd] - (mean_gx[sd] * mean_gx[sd] + mean_gy[sd] * mean_gy[sd]) / nc;
+      // The band stops short of gradients above Canny's low threshold T, so the noise's squared gradient
+      // there is that of a Rayleigh variable cut at T: 2 s^2 (1 - (1 + t^2/2) e^(-t^2/2)) / (1 - e^(-t^2/2)),
+      // t = T / s, s = the gradient noise from the high-pass energy.
+      const double s2 = std::max(1e-12, high[sd] / (36.0 * nc) * noise_gain_ * noise_gain_);
+      const double half_t2 = 0.5 * static_cast<double>(flat_g2) / s2, eh = std::exp(-std::min(half_t2, 700.0));
+      const double cut = half_t2 > 1e-6 ? (1.0 - (1.0 + half_t2) * eh) / (1.0 - eh) : 0.5 * half_t2;
+      const double ratio = varying / (2.0 * s2 * std::max(cut, 1e-6) * nc);
+      drop[sd] = ratio > eo.flat_band_max_texture_ratio;
+    }
+    if (drop[0] || drop[1]) {
+      std::size_t o = 0;
+      for (std::size_t i = 0; i < px.size(); ++i) {
+        const int sd = side_of[i];
+        if (sd != 0 && drop[sd - 1]) continue;
+        px[o++] = px[i];
+      }
+      px.resize(o);
     }
   }
   const int n_chunks = chunk + 1;

@@ -67,6 +67,7 @@ class EmplFitter {
   const FeatureOptions& options_;
   std::vector<EmplPixel>* scratch_;
   double cos_tol_;
+  double noise_gain_;  // GradientNoiseGain of the smoothing: gradient noise per unit image noise
   double proximity_;  // 1 / peak_proximity_sigma_px^2, 0 for the strongest peak
 };
 

@@ -957,6 +957,10 @@ void SectionE(bool quick) {
   fast.empl.photometric_refinement = false;
   fast.curves.enabled = false;
   auto det_fast = FeatureDetector::Create(fast);
+  FeatureOptions flat_band;
+  flat_band.empl.photometric_flat_band = true;
+  flat_band.empl.photometric_ramp = true;
+  auto det_flat = FeatureDetector::Create(flat_band);
   cv::Ptr<cv::ximgproc::EdgeDrawing> ed = cv::ximgproc::createEdgeDrawing();
   cv::Ptr<cv::LineSegmentDetector> lsd = cv::createLineSegmentDetector(cv::LSD_REFINE_STD);
   if (const char* dump = std::getenv("FEATURES_BENCH_DUMP")) {
@@ -1008,6 +1012,7 @@ void SectionE(bool quick) {
     };
     time("IDI pipeline (image in -> IDI points, photometric EMPL, curves)", pipeline(*det));
     time("IDI pipeline, gradient EMPL only (eq. 7.26), no curves", pipeline(*det_fast));
+    time("IDI pipeline, photometric EMPL with the flat band and ramp", pipeline(*det_flat));
     time("EDLines (ximgproc EdgeDrawing)", [&] {
       cv::Mat lines;
       ed->detectEdges(img);
