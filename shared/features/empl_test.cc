@@ -35,6 +35,43 @@ void OffsetAtMiddle(const EmplLine& line, const Vec2d& n, double d, double* offs
   *predicted_var = j.dot(line.covariance * j);
 }
 
+// The offset error at the middle of the line of edge (n, d) (the line within 1 px of it) over `trials`
+// copies of `clean` with noise: its mean and RMS, and how many lines matched.
+struct OffsetErrors {
+  double mean = 0, rms = 0;
+  int found = 0;
+};
+OffsetErrors OffsetErrorsOver(const FeatureOptions& options,
+                              const cv::Mat& clean,
+                              double noise,
+                              std::uint64_t seed,
+                              int trials,
+                              const Vec2d& n,
+                              double d) {
+  OffsetErrors out;
+  auto detector = FeatureDetector::Create(options);
+  EXPECT_TRUE(detector.ok());
+  if (!detector.ok()) return out;
+  double sum = 0, sum2 = 0;
+  for (int t = 0; t < trials; ++t) {
+    const auto r = detector->Detect(analytic::Quantize(clean, noise, seed + static_cast<std::uint64_t>(t)));
+    EXPECT_TRUE(r.ok());
+    if (!r.ok()) continue;
+    for (const EmplLine& l : r->lines) {
+      double oe, var;
+      OffsetAtMiddle(l, n, d, &oe, &var);
+      if (std::fabs(oe) < 1.0) {
+        sum += oe;
+        sum2 += oe * oe;
+        ++out.found;
+      }
+    }
+  }
+  out.mean = sum / std::max(1, out.found);
+  out.rms = std::sqrt(sum2 / std::max(1, out.found));
+  return out;
+}
+
 TEST(EmplTest, NoiseFreeEdgesAreExactAtAnyAngleAndPhase) {
   for (double deg : {0.0, 7.0, 30.0, 45.0, 61.0, 90.0, 112.0, 135.0, 171.0}) {
     for (double phase : {0.0, 0.25, 0.5}) {
@@ -150,44 +187,22 @@ TEST(EmplTest, FlatBandLeavesOutATexturedSide) {
       }
     }
   }
-  auto errors = [&](double max_texture_ratio, double* mean, double* rms) {
-    FeatureOptions o;
-    o.empl.photometric_flat_band = true;
-    o.empl.flat_band_max_texture_ratio = max_texture_ratio;
-    auto detector = FeatureDetector::Create(o);
-    ASSERT_TRUE(detector.ok());
-    double sum = 0, sum2 = 0;
-    int found = 0;
-    const int trials = 30;
-    for (int t = 0; t < trials; ++t) {
-      const auto r = detector->Detect(analytic::Quantize(clean, noise, 1300 + static_cast<std::uint64_t>(t)));
-      ASSERT_TRUE(r.ok());
-      for (const EmplLine& l : r->lines) {
-        double oe, var;
-        OffsetAtMiddle(l, n, d, &oe, &var);
-        if (std::fabs(oe) < 1.0 && l.length_px > 60) {
-          sum += oe;
-          sum2 += oe * oe;
-          ++found;
-        }
-      }
-    }
-    ASSERT_EQ(found, trials);
-    *mean = sum / found;
-    *rms = std::sqrt(sum2 / found);
-  };
-  double mean_tested = 0, rms_tested = 0, mean_untested = 0, rms_untested = 0;
-  errors(FeatureOptions{}.empl.flat_band_max_texture_ratio, &mean_tested, &rms_tested);
-  errors(0.0, &mean_untested, &rms_untested);
+  FeatureOptions o;
+  o.empl.photometric_flat_band = true;
+  const OffsetErrors tested = OffsetErrorsOver(o, clean, noise, 1300, 30, n, d);
+  o.empl.flat_band_max_texture_ratio = 0;
+  const OffsetErrors untested = OffsetErrorsOver(o, clean, noise, 1300, 30, n, d);
   std::printf("offset error at the middle: texture test on: mean %+.4f RMS %.4f px; off: mean %+.4f RMS %.4f px\n",
-              mean_tested,
-              rms_tested,
-              mean_untested,
-              rms_untested);
+              tested.mean,
+              tested.rms,
+              untested.mean,
+              untested.rms);
+  EXPECT_EQ(tested.found, 30);
+  EXPECT_EQ(untested.found, 30);
   EXPECT_GT(FeatureOptions{}.empl.flat_band_max_texture_ratio, 0);
   // The RMS is about 0.010 px, so the mean of 30 is known to 0.002 px.
-  EXPECT_LT(std::fabs(mean_tested), 0.008);
-  EXPECT_GT(std::fabs(mean_untested), 0.018);  // the case is one the test is needed for
+  EXPECT_LT(std::fabs(tested.mean), 0.008);
+  EXPECT_GT(std::fabs(untested.mean), 0.018);  // the case is one the test is needed for
 }
 
 // A face's shading ramps across the edge (1 grey level per pixel here), and a second, parallel edge
@@ -211,25 +226,10 @@ TEST(EmplTest, PhotometricRampKeepsAnEdgeOnAShadedFaceUnbiased) {
     FeatureOptions o;
     o.empl.photometric_flat_band = true;
     o.empl.photometric_ramp = ramp;
-    auto detector = FeatureDetector::Create(o);
-    EXPECT_TRUE(detector.ok());
-    double sum = 0;
-    int found = 0;
-    const int trials = 30;
-    for (int t = 0; t < trials; ++t) {
-      const auto r = detector->Detect(analytic::Quantize(clean, noise, 900 + static_cast<std::uint64_t>(t)));
-      EXPECT_TRUE(r.ok());
-      for (const EmplLine& l : r->lines) {
-        double oe, var;
-        OffsetAtMiddle(l, n, d, &oe, &var);
-        if (std::fabs(oe) < 1.0) {  // the line of this edge, not the second one's
-          sum += oe;
-          ++found;
-        }
-      }
-    }
-    EXPECT_EQ(found, trials);
-    return sum / std::max(1, found);
+    // The line of this edge, not the second one's.
+    const OffsetErrors e = OffsetErrorsOver(o, clean, noise, 900, 30, n, d);
+    EXPECT_EQ(e.found, 30);
+    return e.mean;
   };
   const double with_ramp = mean_offset(true), without = mean_offset(false);
   std::printf("mean offset error: with the ramp %+.4f px, without %+.4f px\n", with_ramp, without);
