@@ -1008,6 +1008,9 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
   double last_t = -1e18;
   const int chunk_len = std::max(4, static_cast<int>(eo.chunk_length_px));
   int stations_used = 0;
+  // The flat band's texture test (below): each pixel's side (0 inside +-half, 1 / 2 the outer band
+  // before / after the line), and per outer side the sums it needs.
+  const bool texture_test = eo.photometric_flat_band && eo.flat_band_max_texture_ratio > 0;
   static thread_local std::vector<std::uint8_t> side_of;
   side_of.clear();
   double high[2] = {0, 0}, smooth[2] = {0, 0}, mean_gx[2] = {0, 0}, mean_gy[2] = {0, 0};
@@ -1065,6 +1068,7 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
       const int y = s.horizontal ? s.minor_base + k : s.major;
       const Vec2d u = geometry_.ToFit(x, y) - centre;
       px.push_back({static_cast<float>(u.x()), static_cast<float>(u.y()), g_.raw.at<float>(y, x), chunk, 1.0f});
+      if (!texture_test) continue;
       const int side = k < -half ? 1 : k > half ? 2 : 0;
       side_of.push_back(static_cast<std::uint8_t>(side));
       if (side != 0 && x > 0 && y > 0 && x < w - 1 && y < h - 1) {
@@ -1086,7 +1090,7 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
   // gradient's variation there while the high-pass energy of the same pixels (Immerkaer's mask
   // [1 -2 1; -2 4 -2; 1 -2 1], blind to smooth shading) stays that of the noise. For white noise
   // sigma, E[|g - mean g|^2] = 2 (gain sigma)^2 and E[r^2] = 36 sigma^2.
-  if (eo.photometric_flat_band && eo.flat_band_max_texture_ratio > 0) {
+  if (texture_test) {
     bool drop[2] = {false, false};
     for (int sd = 0; sd < 2; ++sd) {
       if (counted[sd] == 0) continue;
