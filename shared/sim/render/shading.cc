@@ -57,32 +57,22 @@ inline double FastFloor(double x) {
   return t > x ? t - 1 : t;
 }
 
-// The four lattice values of the cell last used by one octave on this thread: neighbouring pixels
-// mostly fall into the same cell (a cell spans at least two pixels wherever the octave is not faded
-// out), so its table lookups are reused. The values depend on the (shifted) cell alone.
-struct LatticeCell {
-  bool valid = false;
-  int64_t ix = 0, iy = 0;
-  double a = 0, b = 0, c = 0, d = 0;
-};
-thread_local std::array<LatticeCell, 12> t_cells;
-
 // Smooth value noise in [-1, 1] with unit lattice spacing; `shift` moves the lattice (per seed/octave).
-inline double ValueNoise(double x, double y, int64_t shift_x, int64_t shift_y, const NoiseTables& t, LatticeCell& cell) {
+// The four corner values are looked up every time (two byte-table loads each, in L1): cheaper than
+// remembering the last cell, whose hit-or-miss branch the octaves' varying cell sizes make
+// unpredictable, and the octaves' work stays independent so that they overlap.
+inline double ValueNoise(double x, double y, int64_t shift_x, int64_t shift_y, const NoiseTables& t) {
   const double fx = FastFloor(x), fy = FastFloor(y);
   const auto ix = static_cast<int64_t>(fx) + shift_x, iy = static_cast<int64_t>(fy) + shift_y;
   const double tx = Quintic(x - fx), ty = Quintic(y - fy);
-  if (!cell.valid || cell.ix != ix || cell.iy != iy) {
-    cell.valid = true;
-    cell.ix = ix;
-    cell.iy = iy;
-    cell.a = LatticeValue(ix, iy, t);
-    cell.b = LatticeValue(ix + 1, iy, t);
-    cell.c = LatticeValue(ix, iy + 1, t);
-    cell.d = LatticeValue(ix + 1, iy + 1, t);
-  }
-  const double ab = cell.a + (cell.b - cell.a) * tx;
-  return ab + ((cell.c + (cell.d - cell.c) * tx) - ab) * ty;
+  const uint8_t p0 = t.perm[static_cast<std::size_t>(ix & 255)];
+  const uint8_t p1 = t.perm[static_cast<std::size_t>((ix + 1) & 255)];
+  const double a = t.value[t.perm[static_cast<std::size_t>((p0 + iy) & 255)]];
+  const double b = t.value[t.perm[static_cast<std::size_t>((p1 + iy) & 255)]];
+  const double c = t.value[t.perm[static_cast<std::size_t>((p0 + iy + 1) & 255)]];
+  const double d = t.value[t.perm[static_cast<std::size_t>((p1 + iy + 1) & 255)]];
+  const double ab = a + (b - a) * tx;
+  return ab + ((c + (d - c) * tx) - ab) * ty;
 }
 
 // Length of grout within (-inf, x] measured from 0, for grout lines of width g centred on multiples of
@@ -150,7 +140,6 @@ Vec3d TexturedAlbedo(const TexturePlan& plan, const Vec3d& base, double u, doubl
   }
   if (plan.octaves > 0 && t.noise_amplitude > 0) {
     const NoiseTables& tables = Tables();
-    std::array<LatticeCell, 12>& cells = t_cells;
     const double f = std::max(fu, fv);
     double sum = 0;
     for (int o = 0; o < plan.octaves; ++o) {
@@ -158,9 +147,9 @@ Vec3d TexturedAlbedo(const TexturePlan& plan, const Vec3d& base, double u, doubl
       // Octaves finer than the footprint average to zero: fade them out (frequency clamping).
       const double fade = std::clamp(2.0 - 4.0 * f * plan.inv_wavelength[k], 0.0, 1.0);
       if (fade <= 0) break;  // every finer octave is faded out too
-      sum += fade * plan.amplitude[k] *
-             ValueNoise(u * plan.inv_wavelength[k], v * plan.inv_wavelength[k], plan.shift_x[k], plan.shift_y[k], tables,
-                        cells[k]);
+      sum +=
+          fade * plan.amplitude[k] *
+          ValueNoise(u * plan.inv_wavelength[k], v * plan.inv_wavelength[k], plan.shift_x[k], plan.shift_y[k], tables);
     }
     albedo *= std::max(0.0, 1 + sum);
   }
