@@ -21,8 +21,9 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstdlib>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <set>
 #include <string>
@@ -472,8 +473,21 @@ void JointStudy(int trials, int robot_readings, int rail_readings) {
 
 int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::warn);
-  const int trials = argc > 1 ? std::max(2, std::atoi(argv[1])) : 20;
+  const std::string first = argc > 1 ? argv[1] : "";
   const std::string what = argc > 2 ? argv[2] : "all";
+  const bool help = first == "--help" || first == "-h";
+  const bool bad_number = (argc > 1 && std::atoi(argv[1]) < 1) || (argc > 3 && std::atoi(argv[3]) < 1);
+  const bool bad_what = what != "robot" && what != "rail" && what != "joint" && what != "all";
+  if (help || bad_number || bad_what || argc > 4) {
+    if (!help) std::fprintf(stderr, "calib_bench_mc: bad arguments\n");
+    std::fprintf(help ? stdout : stderr,
+                 "usage: calib_bench_mc [TRIALS=20] [robot|rail|joint|all] [READINGS=540]\n"
+                 "  Monte Carlo study of the ViCKi calibrations in the twin: the robot (chapter 4) at three\n"
+                 "  data qualities against the Cramer-Rao bound, the rail (chapter 5), and both solved\n"
+                 "  together (joint). TRIALS is at least 2, READINGS at least 140 per robot trial.\n");
+    return help ? 0 : 2;
+  }
+  const int trials = argc > 1 ? std::max(2, std::atoi(argv[1])) : 20;
   const int readings = argc > 3 ? std::max(140, std::atoi(argv[3])) : 540;
   const auto t0 = std::chrono::steady_clock::now();
   if (what == "robot" || what == "all") idi::RobotStudy(trials, readings);

@@ -714,7 +714,8 @@ std::vector<std::pair<const sim::TruthLine*, double>> LineOffsetsAtMiddle(const 
 }
 
 // FEATURES_BENCH_VERBOSE: each long line's offset error, each missed corner with its lines (found or
-// not, and how far the found segment stops from the corner), each spurious point with its lines.
+// not, and how far the found segment stops from the corner), each spurious point with its lines; under
+// the name of the image (written by FEATURES_BENCH_DUMP=DIR) they come from.
 void PrintCornerDetails(const sim::GroundTruth& truth,
                         const FeatureResult& r,
                         const std::function<Vec2d(const Vec2d&)>& to_fit,
@@ -846,6 +847,10 @@ void SectionD(bool quick) {
         std::fprintf(stderr, "render: %s\n", img.status().ToString().c_str());
         continue;
       }
+      // d<row>-scene<k>.png, the names the verbose listing gives.
+      const std::string image_name = "d" + std::to_string(ci) + "-scene" + std::to_string(k) + ".png";
+      if (const char* dump = std::getenv("FEATURES_BENCH_DUMP"))
+        cv::imwrite(std::string(dump) + "/" + image_name, *img);
       auto r = det->Detect(*img);
       if (!r.ok()) continue;
       if (!c.distortion) {
@@ -857,6 +862,7 @@ void SectionD(bool quick) {
       // Truth in the coordinates the detector reports (undistorted when distortion is modelled).
       auto to_fit = [&](const Vec2d& px) { return c.distortion ? UndistortPixel(cam, px) : px; };
       scores[ci].Add(test::ScoreCorners(truth, *r, to_fit));
+      if (verbose) std::printf("  %s (table row %zu, scene %d):\n", image_name.c_str(), ci + 1, k);
       if (verbose) PrintCornerDetails(truth, *r, to_fit, !c.distortion);
     }
     const test::CornerScore& sc = scores[ci];
@@ -1057,7 +1063,8 @@ int main(int argc, char** argv) {
                    "                     C (chessboard anchors, §7.13.2), D (the twin's object scenes),\n"
                    "                     F (L-corners against their angle); default ABCDEF\n"
                    "Markdown tables on stdout. FEATURES_BENCH_VERBOSE=1 lists section D's misses and spurious\n"
-                   "points; FEATURES_BENCH_DUMP=DIR writes section E's frames as PNG.\n",
+                   "points per image; FEATURES_BENCH_DUMP=DIR writes section E's frames and section D's images\n"
+                   "(d<row>-scene<k>.png, rows counted from 0) as PNG.\n",
                    help ? "" : ("features_bench: unknown option '" + a + "'\n").c_str());
       return help ? 0 : 2;
     }

@@ -18,6 +18,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <string>
 #include <vector>
@@ -180,8 +181,22 @@ int RunTwin(int trials, bool image) {
 }  // namespace idi
 
 int main(int argc, char** argv) {
-  const int trials = argc > 1 ? std::max(1, std::atoi(argv[1])) : 20;
+  const std::string first = argc > 1 ? argv[1] : "";
   const std::string what = argc > 2 ? argv[2] : "all";
+  const bool help = first == "--help" || first == "-h";
+  const bool bad_trials = argc > 1 && !help && std::atoi(argv[1]) < 1;
+  const bool bad_what = what != "solver" && what != "twin" && what != "image" && what != "all";
+  if (help || bad_trials || bad_what || argc > 3) {
+    if (!help) std::fprintf(stderr, "ptu_calib_mc: bad arguments\n");
+    std::fprintf(help ? stdout : stderr,
+                 "usage: ptu_calib_mc [TRIALS=20] [solver|twin|image|all]\n"
+                 "  Monte Carlo study of the single-point pan-tilt calibration (chapter 6): TRIALS heads\n"
+                 "  solved from planned poses (solver), the whole procedure in the twin with geometric\n"
+                 "  spots (twin) or rendered images through the spot detector (image). Tables on stdout;\n"
+                 "  exit 1 when a trial failed to solve.\n");
+    return help ? 0 : 2;
+  }
+  const int trials = argc > 1 ? std::atoi(argv[1]) : 20;
   spdlog::set_level(spdlog::level::warn);
   int rc = 0;
   if (what == "solver" || what == "all") rc |= idi::RunSolver(trials);

@@ -42,6 +42,18 @@ int Main(int argc, char** argv) {
   bool serial_perception = false;
   for (int i = 1; i < argc; i += 2) {
     const std::string a = argv[i];
+    if (a == "--help" || a == "-h") {
+      fmt::print(
+          "usage: rmp_closed_loop_bench [--runs N=3] [--rate-hz HZ=30] [--track TRACK.yaml]\n"
+          "                             [--shading-tolerance-dn T] [--serial-perception]\n"
+          "  Speed of `idi-rmp sim` in closed loop: two rendered 640x480 cameras, stereo tape perception,\n"
+          "  planner and the RMP over the virtual CAN bus, on the standard track (or TRACK). Prints per\n"
+          "  run the simulated, wall and CPU seconds and the speed factor (simulated / wall seconds).\n"
+          "  --shading-tolerance-dn  the renderer's interpolation of smooth shading, in [0, 1] DN (0: every\n"
+          "                          pixel shaded exactly; default: the configuration's)\n"
+          "  --serial-perception     the two images' features on one thread instead of two\n");
+      return 0;
+    }
     if (a == "--serial-perception") {
       serial_perception = true;
       --i;
