@@ -999,6 +999,10 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
   const float flat_g2 = static_cast<float>(flat_g * flat_g);
   const int flat_margin = static_cast<int>(std::ceil(sigma)) + 1;
   const int w = g_.width(), h = g_.height();
+  // photometric_stop_at_other_edge: the window keeps at least this much of the step's own profile.
+  const bool stop_at_other_edge = eo.photometric_stop_at_other_edge;
+  const int min_reach = std::max(2, static_cast<int>(std::ceil(sigma)));
+  const double nrm_x = std::cos(theta), nrm_y = std::sin(theta);
   // Pixels of the clean stations, grouped into chunks with their own contrast and background.
   using Px = EmplPixel;
   std::vector<Px>& px = *scratch_;
@@ -1062,6 +1066,28 @@ bool EmplFitter::PhotometricRefine(const std::vector<Station>& st, std::size_t b
         }
       }
       reach[side] = std::max(half, k - 1);
+    }
+    if (stop_at_other_edge) {
+      // An edge of the opposite sign inside the step's own window (the far side of a thin face seen
+      // edge-on): the one-step model does not hold there, so the window stops short of that edge's
+      // blur. Two pixels in a row beyond Canny's low threshold, so that noise alone seldom stops it.
+      auto signed_grad = [&](int k) {
+        const int x = s.horizontal ? s.major : s.minor_base + k;
+        const int y = s.horizontal ? s.minor_base + k : s.major;
+        return g_.gx.at<float>(y, x) * nrm_x + g_.gy.at<float>(y, x) * nrm_y;
+      };
+      const double own = signed_grad(0);
+      const double sg = own > 0 ? 1.0 : -1.0;
+      for (int side = 0; side < 2; ++side) {
+        const int dir = side == 0 ? -1 : 1;
+        for (int k = 1; k <= reach[side]; ++k) {
+          if (sg * signed_grad(dir * k) < -flat_g &&
+              (k + 1 > reach[side] || sg * signed_grad(dir * (k + 1)) < -flat_g)) {
+            reach[side] = std::max(min_reach, k - flat_margin);
+            break;
+          }
+        }
+      }
     }
     for (int k = -reach[0]; k <= reach[1]; ++k) {
       const int x = s.horizontal ? s.major : s.minor_base + k;

@@ -238,6 +238,48 @@ TEST(EmplTest, PhotometricRampKeepsAnEdgeOnAShadedFaceUnbiased) {
   EXPECT_GT(std::fabs(without), 0.02);  // the case is one that needs the ramp
 }
 
+// A bright strip 5 px wide (a bracket's plate seen edge-on) blurred by sigma_b 1.5: each edge's
+// photometric window of +-half reaches across the strip into the other edge, whose opposite step the
+// one-step model cannot explain. Without photometric_stop_at_other_edge both lines are pulled half a
+// pixel towards the middle; with it each window stops short of the other edge's blur and the pull is
+// five times smaller. (What is left comes from the other edge's tail within the window's least reach,
+// ceil(sigma) px, which a one-step model cannot tell from its own step.)
+TEST(EmplTest, ThinStripKeepsItsTwoEdgesApart) {
+  const double width = 5.0, contrast = 80, noise = 3, blur = 1.5;
+  const Vec2d n(std::cos(0.2), std::sin(0.2));
+  const Vec2d c(64.3, 48.6);
+  const double d = n.dot(c);
+  const cv::Mat clean = analytic::EdgeImage(128, 96, n, d, 50, contrast, blur) +
+                        analytic::EdgeImage(128, 96, n, d + width, 0, -contrast, blur);
+  auto errors = [&](bool stop, double offset) {
+    FeatureOptions o;
+    o.empl.photometric_stop_at_other_edge = stop;
+    return OffsetErrorsOver(o, clean, noise, 700, 30, n, offset);
+  };
+  const OffsetErrors near_on = errors(true, d), far_on = errors(true, d + width);
+  const OffsetErrors near_off = errors(false, d), far_off = errors(false, d + width);
+  std::printf(
+      "strip edges, mean offset error (found of 30): stopping at the other edge %+.4f (%d), %+.4f (%d) px; "
+      "not stopping %+.4f (%d), %+.4f (%d) px\n",
+      near_on.mean,
+      near_on.found,
+      far_on.mean,
+      far_on.found,
+      near_off.mean,
+      near_off.found,
+      far_off.mean,
+      far_off.found);
+  EXPECT_TRUE(FeatureOptions{}.empl.photometric_stop_at_other_edge);
+  EXPECT_EQ(near_on.found, 30);
+  EXPECT_EQ(far_on.found, 30);
+  // The offsets are given along n, so the near edge pulled inwards has a positive error, the far one
+  // a negative error.
+  EXPECT_GT(near_off.mean, 0.4);
+  EXPECT_LT(far_off.mean, -0.4);
+  EXPECT_LT(std::fabs(near_on.mean), 0.12);
+  EXPECT_LT(std::fabs(far_on.mean), 0.12);
+}
+
 TEST(EmplTest, GradientOnlyFitIsUsableWhenThePhotometricStepIsOff) {
   FeatureOptions o;
   o.empl.photometric_refinement = false;
