@@ -484,7 +484,7 @@ int main(int argc, char** argv) {
                  "usage: calib_bench_mc [TRIALS=20] [robot|rail|joint|all] [READINGS=540]\n"
                  "  Monte Carlo study of the ViCKi calibrations in the twin: the robot (chapter 4) at three\n"
                  "  data qualities against the Cramer-Rao bound, the rail (chapter 5), and both solved\n"
-                 "  together (joint). TRIALS is at least 2, READINGS at least 140 per robot trial.\n");
+                 "  together (joint). TRIALS below 2 is raised to 2, READINGS per robot trial below 140 to 140.\n");
     return help ? 0 : 2;
   }
   const int trials = argc > 1 ? std::max(2, std::atoi(argv[1])) : 20;
