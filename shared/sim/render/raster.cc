@@ -540,34 +540,45 @@ class TileInterpolator {
   bool Shade(const Surface& s, int i0, int j0, int w, int h, Vec3d* out) {
     const PixelGrid& g = *prep_.grid;
     if (!s.smooth || !(prep_.shading_tolerance > 0) || w < 5 || h < 5) return false;
-    s_ = &s;
-    i0_ = i0;
-    j0_ = j0;
     const double tol = prep_.shading_tolerance;
     xs_ = {0, w / 4, w / 2, w / 2 + (w - 1 - w / 2) / 2, w - 1};
     ys_ = {0, h / 4, h / 2, h / 2 + (h - 1 - h / 2) / 2, h - 1};
     int spacing = 0;
     for (std::size_t k = 0; k + 1 < 5; ++k) spacing = std::max({spacing, xs_[k + 1] - xs_[k], ys_[k + 1] - ys_[k]});
-    // The 3 x 3 lattice (the even nodes).
-    for (int b = 0; b < 5; b += 2) {
-      for (int a = 0; a < 5; a += 2) At(a, b) = Exact(a, b);
-    }
-    // Texture detail finer than the nodes resolve must be negligible (a quarter of the tolerance).
+    // Every node's centre and footprint, the four corners first: they decide whether the texture's
+    // detail allows interpolation at all, before the other 21 are shaded.
+    std::array<int, 25> order;
+    std::array<double, 25> nx, ny, nf;
+    std::array<Vec3d, 25> value;
+    int n = 0;
     for (const int b : {0, 4}) {
-      for (const int a : {0, 4}) {
-        const int i = i0 + xs_[static_cast<std::size_t>(a)], j = j0 + ys_[static_cast<std::size_t>(b)];
-        const Vec2d c = g.Center(i, j);
-        const Vec3d& v = At(a, b);
-        const double detail = ShadingDetailPx(prep_, s, c.x(), c.y(), g.Footprint(i, j),
-                                              color_ ? v.cwiseAbs().maxCoeff() : std::abs(Luma(v)), 0.25 * tol);
-        if (!(detail >= 2 * spacing)) return false;
-      }
+      for (const int a : {0, 4}) order[static_cast<std::size_t>(n++)] = b * 5 + a;
     }
+    for (int k = 0; k < 25; ++k) {
+      if (k != 0 && k != 4 && k != 20 && k != 24) order[static_cast<std::size_t>(n++)] = k;
+    }
+    for (std::size_t k = 0; k < 25; ++k) {
+      const int a = order[k] % 5, b = order[k] / 5;
+      const int i = i0 + xs_[static_cast<std::size_t>(a)], j = j0 + ys_[static_cast<std::size_t>(b)];
+      const Vec2d c = g.Center(i, j);
+      nx[k] = c.x();
+      ny[k] = c.y();
+      nf[k] = g.Footprint(i, j);
+    }
+    ShadeBatch(prep_, s, nx.data(), ny.data(), nf.data(), 4, value.data());
+    // Texture detail finer than the nodes resolve must be negligible (a quarter of the tolerance).
+    for (std::size_t k = 0; k < 4; ++k) {
+      const Vec3d& v = value[k];
+      const double detail = ShadingDetailPx(
+          prep_, s, nx[k], ny[k], nf[k], color_ ? v.cwiseAbs().maxCoeff() : std::abs(Luma(v)), 0.25 * tol);
+      if (!(detail >= 2 * spacing)) return false;
+    }
+    ShadeBatch(prep_, s, nx.data() + 4, ny.data() + 4, nf.data() + 4, 21, value.data() + 4);
+    for (std::size_t k = 0; k < 25; ++k) node_[static_cast<std::size_t>(order[k])] = value[k];
     double err = 0;
     for (int b = 0; b < 5; ++b) {
       for (int a = 0; a < 5; ++a) {
         if (a % 2 == 0 && b % 2 == 0) continue;
-        At(a, b) = Exact(a, b);
         // The 3 x 3 lattice's interpolation here.
         const int a0 = std::min(a / 2 * 2, 2), b0 = std::min(b / 2 * 2, 2);
         const double tx = Fraction(xs_, a0, a), ty = Fraction(ys_, b0, b);
@@ -601,21 +612,12 @@ class TileInterpolator {
            (xs[static_cast<std::size_t>(k0 + 2)] - xs[static_cast<std::size_t>(k0)]);
   }
 
-  Vec3d Exact(int a, int b) const {
-    const PixelGrid& g = *prep_.grid;
-    const int i = i0_ + xs_[static_cast<std::size_t>(a)], j = j0_ + ys_[static_cast<std::size_t>(b)];
-    const Vec2d c = g.Center(i, j);
-    return internal::Shade(prep_, *s_, c.x(), c.y(), g.Footprint(i, j));
-  }
-
   double Diff(const Vec3d& a, const Vec3d& b) const {
     return color_ ? (a - b).cwiseAbs().maxCoeff() : std::abs(Luma(a - b));
   }
 
   const Prepared& prep_;
   bool color_;
-  const Surface* s_ = nullptr;
-  int i0_ = 0, j0_ = 0;
   std::array<int, 5> xs_{}, ys_{};
   std::array<Vec3d, 25> node_;
 };
@@ -707,6 +709,21 @@ void RasterizeTileRows(const Prepared& prep, bool color, int first, int stride, 
         if (!uniform && shares && NeighboursCovered(prep, covered, tx, ty) && interpolator.Shade(fs, i0, j0, i1 - i0, j1 - j0, tile_values.data())) {
           for (int j = j0; j < j1; ++j) {
             for (int i = i0; i < i1; ++i) store(i, j, tile_values[static_cast<std::size_t>((j - j0) * (i1 - i0) + (i - i0))]);
+          }
+          continue;
+        }
+        if (shares && !uniform) {
+          // Every pixel on the one surface fs: shaded a row at a time.
+          std::array<double, kTileSize> xs, ys, fp;
+          for (int j = j0; j < j1; ++j) {
+            for (int i = i0; i < i1; ++i) {
+              const Vec2d c = g.Center(i, j);
+              xs[static_cast<std::size_t>(i - i0)] = c.x();
+              ys[static_cast<std::size_t>(i - i0)] = c.y();
+              fp[static_cast<std::size_t>(i - i0)] = g.Footprint(i, j);
+            }
+            ShadeBatch(prep, fs, xs.data(), ys.data(), fp.data(), i1 - i0, tile_values.data());
+            for (int i = i0; i < i1; ++i) store(i, j, tile_values[static_cast<std::size_t>(i - i0)]);
           }
           continue;
         }

@@ -210,6 +210,15 @@ double GaussLegendreWeight(int m, int i);
 // Radiance (linear RGB, relative) of a surface at an ideal pixel position; `footprint_px` is the size
 // of the area being integrated (texture filter width). Laser spots are not included.
 Vec3d Shade(const Prepared& prep, const Surface& surface, double x, double y, double footprint_px);
+// Shade at n points of one surface: the same values, several points per instruction where the CPU
+// and the surface allow (AVX2; no cylinder, spotlight or tiles), one by one otherwise.
+void ShadeBatch(const Prepared& prep,
+                const Surface& surface,
+                const double* x,
+                const double* y,
+                const double* footprint_px,
+                int n,
+                Vec3d* out);
 // The finest detail of a surface's shading near an ideal pixel position: the shortest wavelength, in
 // pixels, of the texture there (grout width, or the finest noise octave that is not faded out), leaving
 // out the finest octaves that together change the radiance by at most `negligible` given the radiance

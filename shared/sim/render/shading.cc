@@ -6,6 +6,10 @@
 #include <limits>
 #include <utility>
 
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
+
 #include "shared/sim/render/raster_internal.h"
 
 namespace idi::sim::internal {
@@ -25,6 +29,9 @@ uint64_t MixBits(uint64_t x) {
 struct NoiseTables {
   std::array<uint8_t, 256> perm;
   std::array<double, 256> value;
+  // The lattice value of every cell (i, j) mod 256, looked up once: lattice[256 i + j] =
+  // value[perm[(perm[i] + j) & 255]] (512 KB; the cells one tile of pixels reads stay in L1).
+  std::array<double, 256 * 256> lattice;
   NoiseTables() {
     uint64_t state = 0x1D1C0FFEEULL;
     for (int i = 0; i < 256; ++i) perm[static_cast<std::size_t>(i)] = static_cast<uint8_t>(i);
@@ -35,6 +42,9 @@ struct NoiseTables {
     for (int i = 0; i < 256; ++i) {
       state = MixBits(state + 0x9E3779B97F4A7C15ULL);
       value[static_cast<std::size_t>(i)] = static_cast<double>(state >> 11) * (2.0 / 9007199254740992.0) - 1.0;
+    }
+    for (std::size_t i = 0; i < 256; ++i) {
+      for (std::size_t j = 0; j < 256; ++j) lattice[i * 256 + j] = value[perm[(perm[i] + j) & 255]];
     }
   }
 };
@@ -58,19 +68,18 @@ inline double FastFloor(double x) {
 }
 
 // Smooth value noise in [-1, 1] with unit lattice spacing; `shift` moves the lattice (per seed/octave).
-// The four corner values are looked up every time (two byte-table loads each, in L1): cheaper than
-// remembering the last cell, whose hit-or-miss branch the octaves' varying cell sizes make
-// unpredictable, and the octaves' work stays independent so that they overlap.
+// The four corner values are looked up every time (one load each from the lattice table): cheaper
+// than remembering the last cell, whose hit-or-miss branch the octaves' varying cell sizes make
+// unpredictable, and the octaves' work stays independent so that they overlap. ShadeBatch's vector
+// code does the same operations in the same order.
 inline double ValueNoise(double x, double y, int64_t shift_x, int64_t shift_y, const NoiseTables& t) {
   const double fx = FastFloor(x), fy = FastFloor(y);
   const auto ix = static_cast<int64_t>(fx) + shift_x, iy = static_cast<int64_t>(fy) + shift_y;
   const double tx = Quintic(x - fx), ty = Quintic(y - fy);
-  const uint8_t p0 = t.perm[static_cast<std::size_t>(ix & 255)];
-  const uint8_t p1 = t.perm[static_cast<std::size_t>((ix + 1) & 255)];
-  const double a = t.value[t.perm[static_cast<std::size_t>((p0 + iy) & 255)]];
-  const double b = t.value[t.perm[static_cast<std::size_t>((p1 + iy) & 255)]];
-  const double c = t.value[t.perm[static_cast<std::size_t>((p0 + iy + 1) & 255)]];
-  const double d = t.value[t.perm[static_cast<std::size_t>((p1 + iy + 1) & 255)]];
+  const auto i0 = static_cast<std::size_t>(ix & 255) * 256, i1 = static_cast<std::size_t>((ix + 1) & 255) * 256;
+  const auto j0 = static_cast<std::size_t>(iy & 255), j1 = static_cast<std::size_t>((iy + 1) & 255);
+  const double a = t.lattice[i0 + j0], b = t.lattice[i1 + j0];
+  const double c = t.lattice[i0 + j1], d = t.lattice[i1 + j1];
   const double ab = a + (b - a) * tx;
   return ab + ((c + (d - c) * tx) - ab) * ty;
 }
@@ -158,16 +167,18 @@ Vec3d TexturedAlbedo(const TexturePlan& plan, const Vec3d& base, double u, doubl
 
 // A surface point's texture coordinates and the footprint of `footprint_px` pixels in texture units:
 // the derivative of the surface point along x and y, dp/dx = (e_x / fx) / w - ray (dw/dx) / w^2 (and
-// likewise for y), dotted with the texture axes. inv_w = z on the face's plane (w = 1/z). Per
-// shaded point: reciprocals are multiplied, not divided by.
+// likewise for y), dotted with the texture axes. inv_w = z on the face's plane (w = 1/z); the ray is
+// (rx, ry, 1). Per shaded point: reciprocals are multiplied, not divided by. Written out term by term
+// (no Eigen reductions) so that ShadeBatch's vector code can do the same operations in the same order.
 struct TexturePoint {
   double u, v, fu, fv;
 };
-[[gnu::always_inline]] inline TexturePoint TextureAt(const Prepared& prep, const Surface& s, const Vec3d& ray,
-                                                   double inv_w, double footprint_px) {
+[[gnu::always_inline]] inline TexturePoint TextureAt(
+    const Prepared& prep, const Surface& s, double rx, double ry, double inv_w, double footprint_px) {
   const double dw_dx = s.normal.x() * prep.inv_fx * s.inv_d * inv_w * inv_w;
   const double dw_dy = s.normal.y() * prep.inv_fy * s.inv_d * inv_w * inv_w;
-  const double tu_r = s.tex_u.dot(ray), tv_r = s.tex_v.dot(ray);
+  const double tu_r = s.tex_u.x() * rx + s.tex_u.y() * ry + s.tex_u.z();
+  const double tv_r = s.tex_v.x() * rx + s.tex_v.y() * ry + s.tex_v.z();
   const double zx = inv_w * prep.inv_fx, zy = inv_w * prep.inv_fy;
   TexturePoint tp;
   tp.fu = footprint_px * (std::abs(s.tex_u.x() * zx - tu_r * dw_dx) + std::abs(s.tex_u.y() * zy - tu_r * dw_dy));
@@ -177,13 +188,25 @@ struct TexturePoint {
   return tp;
 }
 
+// z on the face's plane along the ray (rx, ry, 1).
+inline double DepthAlong(const Surface& s, double rx, double ry) {
+  return 1 / ((s.normal.x() * rx + s.normal.y() * ry + s.normal.z()) * s.inv_d);
+}
+
+// The illumination gradient's factor at the surface point (px, py, pz).
+inline double GradientFactor(const IlluminationGradient& g, double px, double py, double pz) {
+  const double dot = g.gradient.x() * (px - g.origin.x()) + g.gradient.y() * (py - g.origin.y()) +
+                     g.gradient.z() * (pz - g.origin.z());
+  return std::max(g.min_factor, 1 + dot);
+}
+
 }  // namespace
 
 Vec3d Shade(const Prepared& prep, const Surface& s, double x, double y, double footprint_px) {
   if (s.constant) return s.radiance;
-  const Vec3d ray((x - prep.cx) * prep.inv_fx, (y - prep.cy) * prep.inv_fy, 1.0);
-  const double inv_w = 1 / (s.normal.dot(ray) * s.inv_d);  // z on the face's plane
-  const Vec3d p = ray * inv_w;
+  const double rx = (x - prep.cx) * prep.inv_fx, ry = (y - prep.cy) * prep.inv_fy;
+  const double inv_w = DepthAlong(s, rx, ry);  // z on the face's plane
+  const Vec3d p(rx * inv_w, ry * inv_w, inv_w);
   double irradiance = s.flat_irradiance;
   Vec3d n = s.normal;
   if (s.cylinder) {
@@ -217,22 +240,181 @@ Vec3d Shade(const Prepared& prep, const Surface& s, double x, double y, double f
     }
     irradiance += sl.intensity * cos_inc * r * r * falloff * edge * edge * (3 - 2 * edge);
   }
-  if (prep.has_gradient) {
-    irradiance *= std::max(prep.gradient.min_factor, 1 + prep.gradient.gradient.dot(p - prep.gradient.origin));
-  }
+  if (prep.has_gradient) irradiance *= GradientFactor(prep.gradient, p.x(), p.y(), p.z());
   Vec3d albedo = s.albedo;
   if (s.texture != nullptr) {
-    const TexturePoint tp = TextureAt(prep, s, ray, inv_w, footprint_px);
+    const TexturePoint tp = TextureAt(prep, s, rx, ry, inv_w, footprint_px);
     albedo = TexturedAlbedo(prep.texture_plans[static_cast<std::size_t>(s.texture_plan)], albedo, tp.u, tp.v, tp.fu, tp.fv);
   }
   return irradiance * albedo;
 }
 
+#if defined(__x86_64__)
+namespace {
+
+#define IDI_AVX2 [[gnu::target("avx2"), gnu::always_inline]] inline
+// a u + b v + c, summed left to right as the scalar expression is.
+IDI_AVX2 __m256d Lin(double a, __m256d u, double b, __m256d v, double c) {
+  return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(a), u), _mm256_mul_pd(_mm256_set1_pd(b), v)),
+                       _mm256_set1_pd(c));
+}
+IDI_AVX2 __m256d Abs(__m256d v) { return _mm256_andnot_pd(_mm256_set1_pd(-0.0), v); }
+// |a zx - t_r dw| as in TextureAt.
+IDI_AVX2 __m256d Extent(double a, __m256d z, __m256d t_r, __m256d dw) {
+  return Abs(_mm256_sub_pd(_mm256_mul_pd(_mm256_set1_pd(a), z), _mm256_mul_pd(t_r, dw)));
+}
+IDI_AVX2 __m256d Quintic4(__m256d t) {
+  const __m256d t3 = _mm256_mul_pd(_mm256_mul_pd(t, t), t);
+  const __m256d inner = _mm256_sub_pd(_mm256_mul_pd(t, _mm256_set1_pd(6.0)), _mm256_set1_pd(15.0));
+  return _mm256_mul_pd(t3, _mm256_add_pd(_mm256_mul_pd(t, inner), _mm256_set1_pd(10.0)));
+}
+// table[idx[k]] for the four lanes (the masked form: the plain one trips GCC 12's uninitialised-use
+// warning on its undefined source operand).
+IDI_AVX2 __m256d Gather(const double* table, __m128i idx) {
+  return _mm256_mask_i32gather_pd(_mm256_setzero_pd(), table, idx, _mm256_castsi256_pd(_mm256_set1_epi64x(-1)), 8);
+}
+// (a < b) ? b : a, i.e. std::max(a, b).
+IDI_AVX2 __m256d Max(__m256d a, __m256d b) { return _mm256_blendv_pd(a, b, _mm256_cmp_pd(a, b, _CMP_LT_OQ)); }
+
+// Four points of one surface at once with AVX2 (no FMA: the same roundings as Shade, operation for
+// operation, so the image does not depend on the path). For what ShadeBatch hands it: not constant,
+// not a cylinder, no spotlights, no tiles. False (nothing written) when a noise coordinate is beyond
+// what 32-bit lattice indices hold; the caller then shades those points one by one.
+[[gnu::target("avx2")]] bool ShadeFourAvx2(const Prepared& prep,
+                                           const Surface& s,
+                                           const TexturePlan* plan,
+                                           const double* x,
+                                           const double* y,
+                                           const double* footprint,
+                                           Vec3d* out) {
+  const __m256d rx =
+      _mm256_mul_pd(_mm256_sub_pd(_mm256_loadu_pd(x), _mm256_set1_pd(prep.cx)), _mm256_set1_pd(prep.inv_fx));
+  const __m256d ry =
+      _mm256_mul_pd(_mm256_sub_pd(_mm256_loadu_pd(y), _mm256_set1_pd(prep.cy)), _mm256_set1_pd(prep.inv_fy));
+  const __m256d one = _mm256_set1_pd(1.0);
+  const __m256d inv_w =
+      _mm256_div_pd(one, _mm256_mul_pd(Lin(s.normal.x(), rx, s.normal.y(), ry, s.normal.z()), _mm256_set1_pd(s.inv_d)));
+  __m256d irradiance = _mm256_set1_pd(s.flat_irradiance);
+  if (prep.has_gradient) {
+    const IlluminationGradient& g = prep.gradient;
+    const __m256d px = _mm256_mul_pd(rx, inv_w), py = _mm256_mul_pd(ry, inv_w);
+    const __m256d dot = _mm256_add_pd(
+        _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(g.gradient.x()), _mm256_sub_pd(px, _mm256_set1_pd(g.origin.x()))),
+                      _mm256_mul_pd(_mm256_set1_pd(g.gradient.y()), _mm256_sub_pd(py, _mm256_set1_pd(g.origin.y())))),
+        _mm256_mul_pd(_mm256_set1_pd(g.gradient.z()), _mm256_sub_pd(inv_w, _mm256_set1_pd(g.origin.z()))));
+    // std::max(min_factor, v) = (min_factor < v) ? v : min_factor.
+    const __m256d v = _mm256_add_pd(one, dot), lo = _mm256_set1_pd(g.min_factor);
+    irradiance = _mm256_mul_pd(irradiance, Max(lo, v));
+  }
+  __m256d factor = one;  // the noise's albedo factor
+  if (plan != nullptr) {
+    const __m256d dw_dx =
+        _mm256_mul_pd(_mm256_mul_pd(_mm256_set1_pd(s.normal.x() * prep.inv_fx * s.inv_d), inv_w), inv_w);
+    const __m256d dw_dy =
+        _mm256_mul_pd(_mm256_mul_pd(_mm256_set1_pd(s.normal.y() * prep.inv_fy * s.inv_d), inv_w), inv_w);
+    const __m256d tu_r = Lin(s.tex_u.x(), rx, s.tex_u.y(), ry, s.tex_u.z());
+    const __m256d tv_r = Lin(s.tex_v.x(), rx, s.tex_v.y(), ry, s.tex_v.z());
+    const __m256d zx = _mm256_mul_pd(inv_w, _mm256_set1_pd(prep.inv_fx)),
+                  zy = _mm256_mul_pd(inv_w, _mm256_set1_pd(prep.inv_fy));
+    const __m256d foot = _mm256_loadu_pd(footprint);
+    const __m256d fu =
+        _mm256_mul_pd(foot, _mm256_add_pd(Extent(s.tex_u.x(), zx, tu_r, dw_dx), Extent(s.tex_u.y(), zy, tu_r, dw_dy)));
+    const __m256d fv =
+        _mm256_mul_pd(foot, _mm256_add_pd(Extent(s.tex_v.x(), zx, tv_r, dw_dx), Extent(s.tex_v.y(), zy, tv_r, dw_dy)));
+    const __m256d u = _mm256_add_pd(_mm256_mul_pd(tu_r, inv_w), _mm256_set1_pd(s.tex_u0));
+    const __m256d v = _mm256_add_pd(_mm256_mul_pd(tv_r, inv_w), _mm256_set1_pd(s.tex_v0));
+    // std::max(fu, fv) = (fu < fv) ? fv : fu.
+    const __m256d f4 = _mm256_mul_pd(_mm256_set1_pd(4.0), Max(fu, fv));
+    const double* lattice = Tables().lattice.data();
+    const __m256d limit = _mm256_set1_pd(1073741824.0);  // 2^30: lattice indices fit in 32 bits
+    const __m128i mask = _mm_set1_epi32(255);
+    __m256d sum = _mm256_setzero_pd();
+    for (int o = 0; o < plan->octaves; ++o) {
+      const std::size_t k = static_cast<std::size_t>(o);
+      const __m256d inv_wl = _mm256_set1_pd(plan->inv_wavelength[k]);
+      // clamp(2 - 4 f / wavelength, 0, 1); an octave faded out everywhere ends the sum, as in Shade
+      // (a lane faded out earlier adds 0 x its noise, which leaves its sum unchanged).
+      const __m256d fade = _mm256_min_pd(
+          _mm256_max_pd(_mm256_sub_pd(_mm256_set1_pd(2.0), _mm256_mul_pd(f4, inv_wl)), _mm256_setzero_pd()), one);
+      if (_mm256_movemask_pd(_mm256_cmp_pd(fade, _mm256_setzero_pd(), _CMP_GT_OQ)) == 0) break;
+      const __m256d nx = _mm256_mul_pd(u, inv_wl), ny = _mm256_mul_pd(v, inv_wl);
+      if (_mm256_movemask_pd(_mm256_or_pd(_mm256_cmp_pd(Abs(nx), limit, _CMP_NLT_UQ),
+                                          _mm256_cmp_pd(Abs(ny), limit, _CMP_NLT_UQ))) != 0) {
+        return false;
+      }
+      const __m256d fx = _mm256_floor_pd(nx), fy = _mm256_floor_pd(ny);
+      const __m128i ix = _mm_add_epi32(_mm256_cvttpd_epi32(fx), _mm_set1_epi32(static_cast<int>(plan->shift_x[k])));
+      const __m128i iy = _mm_add_epi32(_mm256_cvttpd_epi32(fy), _mm_set1_epi32(static_cast<int>(plan->shift_y[k])));
+      const __m128i i0 = _mm_slli_epi32(_mm_and_si128(ix, mask), 8);
+      const __m128i i1 = _mm_slli_epi32(_mm_and_si128(_mm_add_epi32(ix, _mm_set1_epi32(1)), mask), 8);
+      const __m128i j0 = _mm_and_si128(iy, mask);
+      const __m128i j1 = _mm_and_si128(_mm_add_epi32(iy, _mm_set1_epi32(1)), mask);
+      const __m256d a = Gather(lattice, _mm_add_epi32(i0, j0));
+      const __m256d b = Gather(lattice, _mm_add_epi32(i1, j0));
+      const __m256d c = Gather(lattice, _mm_add_epi32(i0, j1));
+      const __m256d d = Gather(lattice, _mm_add_epi32(i1, j1));
+      const __m256d tx = Quintic4(_mm256_sub_pd(nx, fx)), ty = Quintic4(_mm256_sub_pd(ny, fy));
+      const __m256d ab = _mm256_add_pd(a, _mm256_mul_pd(_mm256_sub_pd(b, a), tx));
+      const __m256d cd = _mm256_add_pd(c, _mm256_mul_pd(_mm256_sub_pd(d, c), tx));
+      const __m256d noise = _mm256_add_pd(ab, _mm256_mul_pd(_mm256_sub_pd(cd, ab), ty));
+      sum = _mm256_add_pd(sum, _mm256_mul_pd(_mm256_mul_pd(fade, _mm256_set1_pd(plan->amplitude[k])), noise));
+    }
+    // std::max(0.0, 1 + sum) = (0 < 1 + sum) ? 1 + sum : 0.
+    const __m256d t = _mm256_add_pd(one, sum);
+    factor = Max(_mm256_setzero_pd(), t);
+  }
+  alignas(32) double irr[4], fac[4];
+  _mm256_store_pd(irr, irradiance);
+  _mm256_store_pd(fac, factor);
+  for (int k = 0; k < 4; ++k) {
+    out[k] = plan != nullptr ? Vec3d(irr[k] * (s.albedo.x() * fac[k]),
+                                     irr[k] * (s.albedo.y() * fac[k]),
+                                     irr[k] * (s.albedo.z() * fac[k]))
+                             : Vec3d(irr[k] * s.albedo.x(), irr[k] * s.albedo.y(), irr[k] * s.albedo.z());
+  }
+  return true;
+}
+
+#undef IDI_AVX2
+
+}  // namespace
+#endif
+
+void ShadeBatch(const Prepared& prep,
+                const Surface& s,
+                const double* x,
+                const double* y,
+                const double* footprint_px,
+                int n,
+                Vec3d* out) {
+#if defined(__x86_64__)
+  static const bool avx2 = __builtin_cpu_supports("avx2") != 0;
+  const bool simple =
+      !s.constant && !s.cylinder && prep.spotlights.empty() && (s.texture == nullptr || !(s.texture->tile_size > 0));
+  if (avx2 && simple) {
+    const TexturePlan* plan = nullptr;
+    if (s.texture != nullptr) {
+      const TexturePlan& p = prep.texture_plans[static_cast<std::size_t>(s.texture_plan)];
+      if (p.octaves > 0 && s.texture->noise_amplitude > 0) plan = &p;
+    }
+    int k = 0;
+    for (; k + 4 <= n; k += 4) {
+      if (!ShadeFourAvx2(prep, s, plan, x + k, y + k, footprint_px + k, out + k)) {
+        for (int i = k; i < k + 4; ++i) out[i] = Shade(prep, s, x[i], y[i], footprint_px[i]);
+      }
+    }
+    for (; k < n; ++k) out[k] = Shade(prep, s, x[k], y[k], footprint_px[k]);
+    return;
+  }
+#endif
+  for (int k = 0; k < n; ++k) out[k] = Shade(prep, s, x[k], y[k], footprint_px[k]);
+}
+
 double ShadingDetailPx(const Prepared& prep, const Surface& s, double x, double y, double footprint_px,
                        double radiance, double negligible) {
   if (s.texture == nullptr) return std::numeric_limits<double>::infinity();
-  const Vec3d ray((x - prep.cx) * prep.inv_fx, (y - prep.cy) * prep.inv_fy, 1.0);
-  const TexturePoint tp = TextureAt(prep, s, ray, 1 / (s.normal.dot(ray) * s.inv_d), footprint_px);
+  const double rx = (x - prep.cx) * prep.inv_fx, ry = (y - prep.cy) * prep.inv_fy;
+  const TexturePoint tp = TextureAt(prep, s, rx, ry, DepthAlong(s, rx, ry), footprint_px);
   const TexturePlan& plan = prep.texture_plans[static_cast<std::size_t>(s.texture_plan)];
   // Texture units per pixel (an upper bound: fu and fv sum the absolute derivatives).
   const double f = std::max(tp.fu, tp.fv);
