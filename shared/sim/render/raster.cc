@@ -722,8 +722,12 @@ void RasterizeTileRows(const Prepared& prep, bool color, int first, int stride, 
               ys[static_cast<std::size_t>(i - i0)] = c.y();
               fp[static_cast<std::size_t>(i - i0)] = g.Footprint(i, j);
             }
-            ShadeBatch(prep, fs, xs.data(), ys.data(), fp.data(), i1 - i0, tile_values.data());
-            for (int i = i0; i < i1; ++i) store(i, j, tile_values[static_cast<std::size_t>(i - i0)]);
+            if (color) {
+              ShadeBatch(prep, fs, xs.data(), ys.data(), fp.data(), i1 - i0, tile_values.data());
+              for (int i = i0; i < i1; ++i) store(i, j, tile_values[static_cast<std::size_t>(i - i0)]);
+            } else {
+              ShadeBatchLuma(prep, fs, xs.data(), ys.data(), fp.data(), i1 - i0, out.ptr<float>(j) + i0);
+            }
           }
           continue;
         }

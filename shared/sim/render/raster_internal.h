@@ -219,6 +219,14 @@ void ShadeBatch(const Prepared& prep,
                 const double* footprint_px,
                 int n,
                 Vec3d* out);
+// The same, as float Luma() of each radiance (what a gray raster stores).
+void ShadeBatchLuma(const Prepared& prep,
+                    const Surface& surface,
+                    const double* x,
+                    const double* y,
+                    const double* footprint_px,
+                    int n,
+                    float* out);
 // The finest detail of a surface's shading near an ideal pixel position: the shortest wavelength, in
 // pixels, of the texture there (grout width, or the finest noise octave that is not faded out), leaving
 // out the finest octaves that together change the radiance by at most `negligible` given the radiance

@@ -278,15 +278,17 @@ IDI_AVX2 __m256d Max(__m256d a, __m256d b) { return _mm256_blendv_pd(a, b, _mm25
 
 // Four points of one surface at once with AVX2 (no FMA: the same roundings as Shade, operation for
 // operation, so the image does not depend on the path). For what ShadeBatch hands it: not constant,
-// not a cylinder, no spotlights, no tiles. False (nothing written) when a noise coordinate is beyond
-// what 32-bit lattice indices hold; the caller then shades those points one by one.
+// not a cylinder, no spotlights, no tiles. Writes the radiance to rgb, or its luma to luma when that is
+// not null. False (nothing written) when a noise coordinate is beyond what 32-bit lattice indices
+// hold; the caller then shades those points one by one.
 [[gnu::target("avx2")]] bool ShadeFourAvx2(const Prepared& prep,
                                            const Surface& s,
                                            const TexturePlan* plan,
                                            const double* x,
                                            const double* y,
                                            const double* footprint,
-                                           Vec3d* out) {
+                                           Vec3d* rgb,
+                                           float* luma) {
   const __m256d rx =
       _mm256_mul_pd(_mm256_sub_pd(_mm256_loadu_pd(x), _mm256_set1_pd(prep.cx)), _mm256_set1_pd(prep.inv_fx));
   const __m256d ry =
@@ -363,15 +365,24 @@ IDI_AVX2 __m256d Max(__m256d a, __m256d b) { return _mm256_blendv_pd(a, b, _mm25
     const __m256d t = _mm256_add_pd(one, sum);
     factor = Max(_mm256_setzero_pd(), t);
   }
-  alignas(32) double irr[4], fac[4];
-  _mm256_store_pd(irr, irradiance);
-  _mm256_store_pd(fac, factor);
-  for (int k = 0; k < 4; ++k) {
-    out[k] = plan != nullptr ? Vec3d(irr[k] * (s.albedo.x() * fac[k]),
-                                     irr[k] * (s.albedo.y() * fac[k]),
-                                     irr[k] * (s.albedo.z() * fac[k]))
-                             : Vec3d(irr[k] * s.albedo.x(), irr[k] * s.albedo.y(), irr[k] * s.albedo.z());
+  // irradiance x (albedo x factor) per channel, as Shade's irradiance * albedo (factor 1 leaves the
+  // albedo as it is).
+  const __m256d r = _mm256_mul_pd(irradiance, _mm256_mul_pd(_mm256_set1_pd(s.albedo.x()), factor));
+  const __m256d g = _mm256_mul_pd(irradiance, _mm256_mul_pd(_mm256_set1_pd(s.albedo.y()), factor));
+  const __m256d b = _mm256_mul_pd(irradiance, _mm256_mul_pd(_mm256_set1_pd(s.albedo.z()), factor));
+  if (luma != nullptr) {
+    // Luma() and the cast to float of the rasterizer's store.
+    const __m256d l =
+        _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(0.299), r), _mm256_mul_pd(_mm256_set1_pd(0.587), g)),
+                      _mm256_mul_pd(_mm256_set1_pd(0.114), b));
+    _mm_storeu_ps(luma, _mm256_cvtpd_ps(l));
+    return true;
   }
+  alignas(32) double rr[4], gg[4], bb[4];
+  _mm256_store_pd(rr, r);
+  _mm256_store_pd(gg, g);
+  _mm256_store_pd(bb, b);
+  for (std::size_t k = 0; k < 4; ++k) rgb[k] = Vec3d(rr[k], gg[k], bb[k]);
   return true;
 }
 
@@ -380,13 +391,27 @@ IDI_AVX2 __m256d Max(__m256d a, __m256d b) { return _mm256_blendv_pd(a, b, _mm25
 }  // namespace
 #endif
 
-void ShadeBatch(const Prepared& prep,
-                const Surface& s,
-                const double* x,
-                const double* y,
-                const double* footprint_px,
-                int n,
-                Vec3d* out) {
+namespace {
+
+// ShadeBatch into rgb, or into luma (as float) when luma is not null.
+void ShadeBatchTo(const Prepared& prep,
+                  const Surface& s,
+                  const double* x,
+                  const double* y,
+                  const double* footprint_px,
+                  int n,
+                  Vec3d* rgb,
+                  float* luma) {
+  auto one_by_one = [&](int from, int to) {
+    for (int k = from; k < to; ++k) {
+      const Vec3d v = Shade(prep, s, x[k], y[k], footprint_px[k]);
+      if (luma != nullptr) {
+        luma[k] = static_cast<float>(Luma(v));
+      } else {
+        rgb[k] = v;
+      }
+    }
+  };
 #if defined(__x86_64__)
   static const bool avx2 = __builtin_cpu_supports("avx2") != 0;
   const bool simple =
@@ -399,15 +424,44 @@ void ShadeBatch(const Prepared& prep,
     }
     int k = 0;
     for (; k + 4 <= n; k += 4) {
-      if (!ShadeFourAvx2(prep, s, plan, x + k, y + k, footprint_px + k, out + k)) {
-        for (int i = k; i < k + 4; ++i) out[i] = Shade(prep, s, x[i], y[i], footprint_px[i]);
+      if (!ShadeFourAvx2(prep,
+                         s,
+                         plan,
+                         x + k,
+                         y + k,
+                         footprint_px + k,
+                         rgb == nullptr ? nullptr : rgb + k,
+                         luma == nullptr ? nullptr : luma + k)) {
+        one_by_one(k, k + 4);
       }
     }
-    for (; k < n; ++k) out[k] = Shade(prep, s, x[k], y[k], footprint_px[k]);
+    one_by_one(k, n);
     return;
   }
 #endif
-  for (int k = 0; k < n; ++k) out[k] = Shade(prep, s, x[k], y[k], footprint_px[k]);
+  one_by_one(0, n);
+}
+
+}  // namespace
+
+void ShadeBatch(const Prepared& prep,
+                const Surface& s,
+                const double* x,
+                const double* y,
+                const double* footprint_px,
+                int n,
+                Vec3d* out) {
+  ShadeBatchTo(prep, s, x, y, footprint_px, n, out, nullptr);
+}
+
+void ShadeBatchLuma(const Prepared& prep,
+                    const Surface& s,
+                    const double* x,
+                    const double* y,
+                    const double* footprint_px,
+                    int n,
+                    float* out) {
+  ShadeBatchTo(prep, s, x, y, footprint_px, n, nullptr, out);
 }
 
 double ShadingDetailPx(const Prepared& prep, const Surface& s, double x, double y, double footprint_px,

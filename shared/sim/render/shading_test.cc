@@ -1,9 +1,9 @@
 // ShadeBatch (several points per instruction where the CPU has AVX2) against Shade (one point at a
-// time): the same radiance to the last bit, for a textured floor under an illumination gradient seen
-// by the rmp rig's camera, with and without lens distortion, in colour, for batch sizes that are and
-// are not multiples of four, and where the noise lattice's coordinates are too large for the vector
-// path (it must then hand the points to Shade). On a CPU without AVX2 both are Shade and the test
-// checks only that the batch covers every point.
+// time): the same radiance to the last bit (and ShadeBatchLuma the same float luma), for a textured floor under an
+// illumination gradient seen by the rmp rig's camera, with and without lens distortion, in colour, for batch sizes that
+// are and are not multiples of four, and where the noise lattice's coordinates are too large for the vector path (it
+// must then hand the points to Shade). On a CPU without AVX2 both are Shade and the test checks only that the batch
+// covers every point.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -68,6 +68,7 @@ void ExpectSameAsShade(const Scene& scene, bool distorted, int n, double footpri
   std::uniform_real_distribution<double> px(0, 640), py(0, 480), foot(0.3, 3.0);
   std::vector<double> xs(static_cast<std::size_t>(n)), ys(xs.size()), fs(xs.size());
   std::vector<Vec3d> batch(xs.size());
+  std::vector<float> luma(xs.size());
   int compared = 0;
   for (int call = 0; call < 400; ++call) {
     for (std::size_t k = 0; k < xs.size(); ++k) {
@@ -77,12 +78,14 @@ void ExpectSameAsShade(const Scene& scene, bool distorted, int n, double footpri
       fs[k] = footprint_scale * foot(rng);
     }
     ShadeBatch(*prep, floor, xs.data(), ys.data(), fs.data(), n, batch.data());
+    ShadeBatchLuma(*prep, floor, xs.data(), ys.data(), fs.data(), n, luma.data());
     for (std::size_t k = 0; k < xs.size(); ++k) {
       const Vec3d one = Shade(*prep, floor, xs[k], ys[k], fs[k]);
       ASSERT_EQ(batch[k].x(), one.x()) << "point " << k << " of call " << call << " at (" << xs[k] << ", " << ys[k]
                                        << ")";
       ASSERT_EQ(batch[k].y(), one.y());
       ASSERT_EQ(batch[k].z(), one.z());
+      ASSERT_EQ(luma[k], static_cast<float>(Luma(one)));
       ++compared;
     }
   }
