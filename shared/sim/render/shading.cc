@@ -386,6 +386,145 @@ IDI_AVX2 __m256d Max(__m256d a, __m256d b) { return _mm256_blendv_pd(a, b, _mm25
   return true;
 }
 
+// GCC 12's AVX-512 intrinsics pass _mm512_undefined_pd() as the unused merge source, which its
+// uninitialised-use analysis reports once they are inlined.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#define IDI_AVX512 [[gnu::target("avx512f"), gnu::always_inline]] inline
+// The AVX2 helpers above on eight lanes.
+IDI_AVX512 __m512d Lin8(double a, __m512d u, double b, __m512d v, double c) {
+  return _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(a), u), _mm512_mul_pd(_mm512_set1_pd(b), v)),
+                       _mm512_set1_pd(c));
+}
+IDI_AVX512 __m512d Abs8(__m512d v) { return _mm512_abs_pd(v); }
+IDI_AVX512 __m512d Extent8(double a, __m512d z, __m512d t_r, __m512d dw) {
+  return Abs8(_mm512_sub_pd(_mm512_mul_pd(_mm512_set1_pd(a), z), _mm512_mul_pd(t_r, dw)));
+}
+IDI_AVX512 __m512d Quintic8(__m512d t) {
+  const __m512d t3 = _mm512_mul_pd(_mm512_mul_pd(t, t), t);
+  const __m512d inner = _mm512_sub_pd(_mm512_mul_pd(t, _mm512_set1_pd(6.0)), _mm512_set1_pd(15.0));
+  return _mm512_mul_pd(t3, _mm512_add_pd(_mm512_mul_pd(t, inner), _mm512_set1_pd(10.0)));
+}
+IDI_AVX512 __m512d Gather8(const double* table, __m256i idx) {
+  return _mm512_mask_i32gather_pd(_mm512_setzero_pd(), 0xFF, idx, table, 8);
+}
+IDI_AVX512 __m512d Max8(__m512d a, __m512d b) {
+  return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(a, b, _CMP_LT_OQ), a, b);
+}
+IDI_AVX512 __m512d Floor8(__m512d v) {
+  return _mm512_mask_roundscale_pd(_mm512_setzero_pd(), 0xFF, v, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC);
+}
+
+// ShadeFourAvx2 on eight points with AVX-512.
+[[gnu::target("avx512f")]] bool ShadeEightAvx512(const Prepared& prep,
+                                                 const Surface& s,
+                                                 const TexturePlan* plan,
+                                                 const double* x,
+                                                 const double* y,
+                                                 const double* footprint,
+                                                 Vec3d* rgb,
+                                                 float* luma) {
+  const __m512d rx =
+      _mm512_mul_pd(_mm512_sub_pd(_mm512_loadu_pd(x), _mm512_set1_pd(prep.cx)), _mm512_set1_pd(prep.inv_fx));
+  const __m512d ry =
+      _mm512_mul_pd(_mm512_sub_pd(_mm512_loadu_pd(y), _mm512_set1_pd(prep.cy)), _mm512_set1_pd(prep.inv_fy));
+  const __m512d one = _mm512_set1_pd(1.0);
+  const __m512d inv_w = _mm512_div_pd(
+      one, _mm512_mul_pd(Lin8(s.normal.x(), rx, s.normal.y(), ry, s.normal.z()), _mm512_set1_pd(s.inv_d)));
+  __m512d irradiance = _mm512_set1_pd(s.flat_irradiance);
+  if (prep.has_gradient) {
+    const IlluminationGradient& g = prep.gradient;
+    const __m512d px = _mm512_mul_pd(rx, inv_w), py = _mm512_mul_pd(ry, inv_w);
+    const __m512d dot = _mm512_add_pd(
+        _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(g.gradient.x()), _mm512_sub_pd(px, _mm512_set1_pd(g.origin.x()))),
+                      _mm512_mul_pd(_mm512_set1_pd(g.gradient.y()), _mm512_sub_pd(py, _mm512_set1_pd(g.origin.y())))),
+        _mm512_mul_pd(_mm512_set1_pd(g.gradient.z()), _mm512_sub_pd(inv_w, _mm512_set1_pd(g.origin.z()))));
+    // std::max(min_factor, v) = (min_factor < v) ? v : min_factor.
+    const __m512d v = _mm512_add_pd(one, dot), lo = _mm512_set1_pd(g.min_factor);
+    irradiance = _mm512_mul_pd(irradiance, Max8(lo, v));
+  }
+  __m512d factor = one;  // the noise's albedo factor
+  if (plan != nullptr) {
+    const __m512d dw_dx =
+        _mm512_mul_pd(_mm512_mul_pd(_mm512_set1_pd(s.normal.x() * prep.inv_fx * s.inv_d), inv_w), inv_w);
+    const __m512d dw_dy =
+        _mm512_mul_pd(_mm512_mul_pd(_mm512_set1_pd(s.normal.y() * prep.inv_fy * s.inv_d), inv_w), inv_w);
+    const __m512d tu_r = Lin8(s.tex_u.x(), rx, s.tex_u.y(), ry, s.tex_u.z());
+    const __m512d tv_r = Lin8(s.tex_v.x(), rx, s.tex_v.y(), ry, s.tex_v.z());
+    const __m512d zx = _mm512_mul_pd(inv_w, _mm512_set1_pd(prep.inv_fx)),
+                  zy = _mm512_mul_pd(inv_w, _mm512_set1_pd(prep.inv_fy));
+    const __m512d foot = _mm512_loadu_pd(footprint);
+    const __m512d fu = _mm512_mul_pd(
+        foot, _mm512_add_pd(Extent8(s.tex_u.x(), zx, tu_r, dw_dx), Extent8(s.tex_u.y(), zy, tu_r, dw_dy)));
+    const __m512d fv = _mm512_mul_pd(
+        foot, _mm512_add_pd(Extent8(s.tex_v.x(), zx, tv_r, dw_dx), Extent8(s.tex_v.y(), zy, tv_r, dw_dy)));
+    const __m512d u = _mm512_add_pd(_mm512_mul_pd(tu_r, inv_w), _mm512_set1_pd(s.tex_u0));
+    const __m512d v = _mm512_add_pd(_mm512_mul_pd(tv_r, inv_w), _mm512_set1_pd(s.tex_v0));
+    // std::max(fu, fv) = (fu < fv) ? fv : fu.
+    const __m512d f4 = _mm512_mul_pd(_mm512_set1_pd(4.0), Max8(fu, fv));
+    const double* lattice = Tables().lattice.data();
+    const __m512d limit = _mm512_set1_pd(1073741824.0);  // 2^30: lattice indices fit in 32 bits
+    const __m256i mask = _mm256_set1_epi32(255);
+    __m512d sum = _mm512_setzero_pd();
+    for (int o = 0; o < plan->octaves; ++o) {
+      const std::size_t k = static_cast<std::size_t>(o);
+      const __m512d inv_wl = _mm512_set1_pd(plan->inv_wavelength[k]);
+      // clamp(2 - 4 f / wavelength, 0, 1); an octave faded out everywhere ends the sum, as in Shade
+      // (a lane faded out earlier adds 0 x its noise, which leaves its sum unchanged).
+      __m512d fade = _mm512_sub_pd(_mm512_set1_pd(2.0), _mm512_mul_pd(f4, inv_wl));
+      fade = _mm512_mask_blend_pd(_mm512_cmp_pd_mask(fade, _mm512_setzero_pd(), _CMP_LT_OQ), fade, _mm512_setzero_pd());
+      fade = _mm512_mask_blend_pd(_mm512_cmp_pd_mask(one, fade, _CMP_LT_OQ), fade, one);  // std::clamp(., 0, 1)
+      if (_mm512_cmp_pd_mask(fade, _mm512_setzero_pd(), _CMP_GT_OQ) == 0) break;
+      const __m512d nx = _mm512_mul_pd(u, inv_wl), ny = _mm512_mul_pd(v, inv_wl);
+      if ((_mm512_cmp_pd_mask(Abs8(nx), limit, _CMP_NLT_UQ) | _mm512_cmp_pd_mask(Abs8(ny), limit, _CMP_NLT_UQ)) != 0) {
+        return false;
+      }
+      const __m512d fx = Floor8(nx), fy = Floor8(ny);
+      const __m256i ix =
+          _mm256_add_epi32(_mm512_cvttpd_epi32(fx), _mm256_set1_epi32(static_cast<int>(plan->shift_x[k])));
+      const __m256i iy =
+          _mm256_add_epi32(_mm512_cvttpd_epi32(fy), _mm256_set1_epi32(static_cast<int>(plan->shift_y[k])));
+      const __m256i i0 = _mm256_slli_epi32(_mm256_and_si256(ix, mask), 8);
+      const __m256i i1 = _mm256_slli_epi32(_mm256_and_si256(_mm256_add_epi32(ix, _mm256_set1_epi32(1)), mask), 8);
+      const __m256i j0 = _mm256_and_si256(iy, mask);
+      const __m256i j1 = _mm256_and_si256(_mm256_add_epi32(iy, _mm256_set1_epi32(1)), mask);
+      const __m512d a = Gather8(lattice, _mm256_add_epi32(i0, j0));
+      const __m512d b = Gather8(lattice, _mm256_add_epi32(i1, j0));
+      const __m512d c = Gather8(lattice, _mm256_add_epi32(i0, j1));
+      const __m512d d = Gather8(lattice, _mm256_add_epi32(i1, j1));
+      const __m512d tx = Quintic8(_mm512_sub_pd(nx, fx)), ty = Quintic8(_mm512_sub_pd(ny, fy));
+      const __m512d ab = _mm512_add_pd(a, _mm512_mul_pd(_mm512_sub_pd(b, a), tx));
+      const __m512d cd = _mm512_add_pd(c, _mm512_mul_pd(_mm512_sub_pd(d, c), tx));
+      const __m512d noise = _mm512_add_pd(ab, _mm512_mul_pd(_mm512_sub_pd(cd, ab), ty));
+      sum = _mm512_add_pd(sum, _mm512_mul_pd(_mm512_mul_pd(fade, _mm512_set1_pd(plan->amplitude[k])), noise));
+    }
+    // std::max(0.0, 1 + sum) = (0 < 1 + sum) ? 1 + sum : 0.
+    const __m512d t = _mm512_add_pd(one, sum);
+    factor = Max8(_mm512_setzero_pd(), t);
+  }
+  // irradiance x (albedo x factor) per channel, as Shade's irradiance * albedo (factor 1 leaves the
+  // albedo as it is).
+  const __m512d r = _mm512_mul_pd(irradiance, _mm512_mul_pd(_mm512_set1_pd(s.albedo.x()), factor));
+  const __m512d g = _mm512_mul_pd(irradiance, _mm512_mul_pd(_mm512_set1_pd(s.albedo.y()), factor));
+  const __m512d b = _mm512_mul_pd(irradiance, _mm512_mul_pd(_mm512_set1_pd(s.albedo.z()), factor));
+  if (luma != nullptr) {
+    // Luma() and the cast to float of the rasterizer's store.
+    const __m512d l =
+        _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(0.299), r), _mm512_mul_pd(_mm512_set1_pd(0.587), g)),
+                      _mm512_mul_pd(_mm512_set1_pd(0.114), b));
+    _mm256_storeu_ps(luma, _mm512_cvtpd_ps(l));
+    return true;
+  }
+  alignas(64) double rr[8], gg[8], bb[8];
+  _mm512_store_pd(rr, r);
+  _mm512_store_pd(gg, g);
+  _mm512_store_pd(bb, b);
+  for (std::size_t k = 0; k < 8; ++k) rgb[k] = Vec3d(rr[k], gg[k], bb[k]);
+  return true;
+}
+
+#undef IDI_AVX512
+#pragma GCC diagnostic pop
 #undef IDI_AVX2
 
 }  // namespace
@@ -414,6 +553,7 @@ void ShadeBatchTo(const Prepared& prep,
   };
 #if defined(__x86_64__)
   static const bool avx2 = __builtin_cpu_supports("avx2") != 0;
+  static const bool avx512 = __builtin_cpu_supports("avx512f") != 0;
   const bool simple =
       !s.constant && !s.cylinder && prep.spotlights.empty() && (s.texture == nullptr || !(s.texture->tile_size > 0));
   if (avx2 && simple) {
@@ -423,6 +563,18 @@ void ShadeBatchTo(const Prepared& prep,
       if (p.octaves > 0 && s.texture->noise_amplitude > 0) plan = &p;
     }
     int k = 0;
+    for (; avx512 && k + 8 <= n; k += 8) {
+      if (!ShadeEightAvx512(prep,
+                            s,
+                            plan,
+                            x + k,
+                            y + k,
+                            footprint_px + k,
+                            rgb == nullptr ? nullptr : rgb + k,
+                            luma == nullptr ? nullptr : luma + k)) {
+        one_by_one(k, k + 8);
+      }
+    }
     for (; k + 4 <= n; k += 4) {
       if (!ShadeFourAvx2(prep,
                          s,
