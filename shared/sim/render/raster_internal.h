@@ -211,7 +211,8 @@ double GaussLegendreWeight(int m, int i);
 // of the area being integrated (texture filter width). Laser spots are not included.
 Vec3d Shade(const Prepared& prep, const Surface& surface, double x, double y, double footprint_px);
 // Shade at n points of one surface: the same values, several points per instruction where the CPU
-// and the surface allow (AVX2; no cylinder, spotlight or tiles), one by one otherwise.
+// and the surface allow (8 with AVX-512, 4 with AVX2; no cylinder, spotlight or tiles), one by one
+// otherwise.
 void ShadeBatch(const Prepared& prep,
                 const Surface& surface,
                 const double* x,
