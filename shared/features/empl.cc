@@ -23,8 +23,8 @@ class NormalTable {
   NormalTable() {
     for (int i = 0; i < kSize; ++i) {
       const double z = -kRange + static_cast<double>(i) / kPerUnit;
-      cdf_[static_cast<std::size_t>(i)] = 0.5 * std::erfc(-z / std::sqrt(2.0));
-      pdf_[static_cast<std::size_t>(i)] = std::exp(-0.5 * z * z) / std::sqrt(2.0 * kEmplPi);
+      entry_[static_cast<std::size_t>(i)] = {0.5 * std::erfc(-z / std::sqrt(2.0)),
+                                             std::exp(-0.5 * z * z) / std::sqrt(2.0 * kEmplPi)};
     }
   }
   void Eval(double z, double* cdf, double* pdf) const {
@@ -41,14 +41,18 @@ class NormalTable {
     const double f = (z + kRange) * kPerUnit;
     const int i = static_cast<int>(f);
     const double a = f - i;
-    const std::size_t k = static_cast<std::size_t>(i);
-    *cdf = cdf_[k] + a * (cdf_[k + 1] - cdf_[k]);
-    *pdf = pdf_[k] + a * (pdf_[k + 1] - pdf_[k]);
+    const Entry& lo = entry_[static_cast<std::size_t>(i)];
+    const Entry& hi = entry_[static_cast<std::size_t>(i) + 1];
+    *cdf = lo.cdf + a * (hi.cdf - lo.cdf);
+    *pdf = lo.pdf + a * (hi.pdf - lo.pdf);
   }
 
  private:
-  std::array<double, kSize> cdf_{};
-  std::array<double, kSize> pdf_{};
+  // Phi and phi side by side: one interpolation reads 32 consecutive bytes.
+  struct Entry {
+    double cdf, pdf;
+  };
+  std::array<Entry, kSize> entry_{};
 };
 
 const NormalTable& Normal() {
@@ -66,6 +70,28 @@ struct PhotometricSolution {
   double rss = 0;
 };
 
+// A pixel's linear regressors and the normal-equation sums they enter, written out coefficient by
+// coefficient (the per-pixel sums are the photometric fit's hot loop). The products and their order
+// are those of the Eigen expressions they replace (x^T l as x0 l0 + x1 l1 [+ x2 l2]; h += x x^T and
+// b += x r coefficient by coefficient), so the sums are the same to the bit.
+template <int N>
+struct Regressors {
+  double v[N];
+  double Dot(const double* l) const {
+    double d = v[0] * l[0] + v[1] * l[1];
+    if constexpr (N == 3) d += v[2] * l[2];
+    return d;
+  }
+};
+
+template <int N>
+void AddOuter(const Regressors<N>& x, double r, Eigen::Matrix<double, N, N>* h, Eigen::Matrix<double, N, 1>* b) {
+  for (int j = 0; j < N; ++j) {
+    for (int i = 0; i < N; ++i) (*h)(i, j) += x.v[i] * x.v[j];
+    (*b)(j) += x.v[j] * r;
+  }
+}
+
 template <int N>
 bool SolvePhotometric(
     std::vector<EmplPixel>& px, int n_chunks, double theta, double e, double sigma, PhotometricSolution* out) {
@@ -77,11 +103,11 @@ bool SolvePhotometric(
   const double c0 = std::cos(theta), s0 = std::sin(theta), e0 = e;
   // The linear regressors of a pixel: (Phi, 1[, d]).
   auto regressors = [&](const EmplPixel& p, double cdf) {
-    VecN x;
-    x(0) = cdf;
-    x(1) = 1.0;
+    Regressors<N> x;
+    x.v[0] = cdf;
+    x.v[1] = 1.0;
     if constexpr (N == 3) {
-      x(2) = c0 * p.ux + s0 * p.uy - e0;
+      x.v[2] = c0 * p.ux + s0 * p.uy - e0;
     }
     return x;
   };
@@ -93,10 +119,8 @@ bool SolvePhotometric(
     for (const EmplPixel& p : px) {
       double cdf, pdf;
       normal.Eval((c0 * p.ux + s0 * p.uy - e) / sigma, &cdf, &pdf);
-      const VecN x = regressors(p, cdf);
       const std::size_t k = static_cast<std::size_t>(p.chunk);
-      hh[k].noalias() += x * x.transpose();
-      hb[k].noalias() += x * static_cast<double>(p.value);
+      AddOuter<N>(regressors(p, cdf), static_cast<double>(p.value), &hh[k], &hb[k]);
     }
     for (std::size_t k = 0; k < nc; ++k) {
       if (!(hh[k].determinant() > 1e-9 * (hh[k].diagonal().prod() + 1e-30))) {
@@ -129,8 +153,24 @@ bool SolvePhotometric(
     for (ChunkAcc& ck : chunks) {
       ck = ChunkAcc{};
     }
-    Eigen::Matrix3d hgg = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d gg = Eigen::Vector3d::Zero();
+    // The sums are kept in locals while the pixels stay in one chunk (the band's pixels come chunk
+    // by chunk) and written to that chunk's accumulator when the chunk changes: summed in memory,
+    // each pixel's additions waited on the stores of the one before. Symmetric sums are formed once
+    // (x_a x_b is x_b x_a to the bit) and mirrored. The sums and their order are as before.
+    double hgg_s[3][3] = {}, gg_s[3] = {};
+    struct Local {
+      double hcc[N][N] = {}, hcg[N][3] = {}, bc[N] = {}, lin[N] = {};
+    } acc;
+    std::size_t cur = nc;  // no chunk loaded
+    auto flush = [&] {
+      if (cur == nc) return;
+      ChunkAcc& ck = chunks[cur];
+      for (int a = 0; a < N; ++a) {
+        for (int b = a; b < N; ++b) ck.hcc(a, b) = ck.hcc(b, a) = acc.hcc[a][b];
+        for (int b = 0; b < 3; ++b) ck.hcg(a, b) = acc.hcg[a][b];
+        ck.bc(a) = acc.bc[a];
+      }
+    };
     rss = 0;
     const double c = std::cos(theta), s = std::sin(theta), inv_sigma = 1.0 / sigma;
     for (EmplPixel& p : px) {
@@ -139,38 +179,71 @@ bool SolvePhotometric(
       }
       const double z = (c * p.ux + s * p.uy - e) * inv_sigma;
       const std::size_t k = static_cast<std::size_t>(p.chunk);
-      ChunkAcc& ck = chunks[k];
-      if (std::fabs(z) > kFlatZ) {
-        // The flat image beside the edge (most of a wide band): it tells only the chunk's linear
-        // parameters; the step's slope there is below 4e-5 of its peak.
-        const VecN x = regressors(p, z > 0 ? 1.0 : 0.0);
-        const double r = p.value - x.dot(lin[k]);
-        if (std::fabs(r) > outlier_cut) {
-          p.weight = 0.0f;
-          continue;
+      if (k != cur) {
+        flush();
+        cur = k;
+        const ChunkAcc& ck = chunks[k];
+        for (int a = 0; a < N; ++a) {
+          for (int b = a; b < N; ++b) acc.hcc[a][b] = ck.hcc(a, b);
+          for (int b = 0; b < 3; ++b) acc.hcg[a][b] = ck.hcg(a, b);
+          acc.bc[a] = ck.bc(a);
+          acc.lin[a] = lin[k](a);
         }
-        ck.hcc.noalias() += x * x.transpose();
-        ck.bc.noalias() += x * r;
-        rss += r * r;
-        continue;
       }
-      double cdf, pdf;
-      normal.Eval(z, &cdf, &pdf);
-      const VecN x = regressors(p, cdf);
-      const double r = p.value - x.dot(lin[k]);
+      const bool flat = std::fabs(z) > kFlatZ;
+      // The flat image beside the edge (most of a wide band) tells only the chunk's linear
+      // parameters: the step's slope there is below 4e-5 of its peak.
+      double cdf, pdf = 0;
+      if (flat) {
+        cdf = z > 0 ? 1.0 : 0.0;
+      } else {
+        normal.Eval(z, &cdf, &pdf);
+      }
+      const Regressors<N> x = regressors(p, cdf);
+      const double r = p.value - x.Dot(acc.lin);
       if (std::fabs(r) > outlier_cut) {
         p.weight = 0.0f;  // specks and clutter far off the model
         continue;
       }
-      const double ap = lin[k](0) * pdf * inv_sigma;
-      // d model / d(theta, e, sigma); d model / d(linear parameters) = x.
-      const Eigen::Vector3d j(ap * (-s * p.ux + c * p.uy), -ap, -ap * z);
-      hgg.noalias() += j * j.transpose();
-      gg.noalias() += r * j;
-      ck.hcc.noalias() += x * x.transpose();
-      ck.hcg.noalias() += x * j.transpose();
-      ck.bc.noalias() += x * r;
+      acc.hcc[0][0] += x.v[0] * x.v[0];
+      acc.hcc[0][1] += x.v[0] * x.v[1];
+      acc.hcc[1][1] += x.v[1] * x.v[1];
+      if constexpr (N == 3) {
+        acc.hcc[0][2] += x.v[0] * x.v[2];
+        acc.hcc[1][2] += x.v[1] * x.v[2];
+        acc.hcc[2][2] += x.v[2] * x.v[2];
+      }
+#pragma GCC unroll 3
+      for (int a = 0; a < N; ++a) acc.bc[a] += x.v[a] * r;
       rss += r * r;
+      if (flat) {
+        continue;
+      }
+      const double ap = acc.lin[0] * pdf * inv_sigma;
+      // d model / d(theta, e, sigma); d model / d(linear parameters) = x.
+      const double j[3] = {ap * (-s * p.ux + c * p.uy), -ap, -ap * z};
+      hgg_s[0][0] += j[0] * j[0];
+      hgg_s[0][1] += j[0] * j[1];
+      hgg_s[0][2] += j[0] * j[2];
+      hgg_s[1][1] += j[1] * j[1];
+      hgg_s[1][2] += j[1] * j[2];
+      hgg_s[2][2] += j[2] * j[2];
+      gg_s[0] += r * j[0];
+      gg_s[1] += r * j[1];
+      gg_s[2] += r * j[2];
+#pragma GCC unroll 3
+      for (int a = 0; a < N; ++a) {
+        acc.hcg[a][0] += x.v[a] * j[0];
+        acc.hcg[a][1] += x.v[a] * j[1];
+        acc.hcg[a][2] += x.v[a] * j[2];
+      }
+    }
+    flush();
+    Eigen::Matrix3d hgg;
+    Eigen::Vector3d gg;
+    for (int a = 0; a < 3; ++a) {
+      for (int b = a; b < 3; ++b) hgg(a, b) = hgg(b, a) = hgg_s[a][b];
+      gg(a) = gg_s[a];
     }
     if (rss > prev.rss * (1.0 + 1e-9)) {
       std::tie(theta, e, sigma, rss, lin, s_mat) = std::tie(prev.theta, prev.e, prev.sigma, prev.rss, prev.lin, prev.s);
