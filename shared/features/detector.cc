@@ -85,6 +85,7 @@ Status EmplOptions::Check() const {
     return InvalidArgument("empl.max_iterations must be >= 1");
   }
   IDI_RETURN_IF_ERROR(Positive(outlier_sigmas, "empl.outlier_sigmas"));
+  IDI_RETURN_IF_ERROR(NonNegative(max_fit_rms_px, "empl.max_fit_rms_px"));
   IDI_RETURN_IF_ERROR(InRange(chunk_length_px, 4.0, 1e5, "empl.chunk_length_px"));
   IDI_RETURN_IF_ERROR(NonNegative(end_margin_px, "empl.end_margin_px"));
   IDI_RETURN_IF_ERROR(NonNegative(merge_angle_deg, "empl.merge_angle_deg"));

@@ -645,7 +645,7 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
   }
   const double gap = ho.max_gap_px + 1.0;
   std::vector<Station> st, extra;
-  std::vector<double> prefix;
+  std::vector<double> prefix, band;
   std::vector<Vec2d> pts;
   std::vector<double> wts, alphas;
   std::vector<std::size_t> idx;
@@ -792,7 +792,10 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
       if (st.empty()) {
         return {};
       }
-      // Adaptive local threshold (eq. 7.29): alpha times the mean magnitude within +-epsilon.
+      // Adaptive local threshold (eq. 7.29): alpha times the band's gradient level within +-epsilon,
+      // that level being the mean of the stations' band means there; with EmplOptions::threshold_median,
+      // lowered to their median where that is lower (a short strong stretch raises the mean, not the
+      // median), but not below half the mean. Only a station between the two thresholds needs the median.
       const std::size_t ns = st.size();
       prefix.assign(ns + 1, 0.0);
       for (std::size_t i = 0; i < ns; ++i) {
@@ -802,7 +805,18 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
         const std::size_t a = i >= static_cast<std::size_t>(window) ? i - static_cast<std::size_t>(window) : 0;
         const std::size_t b = std::min(ns, i + static_cast<std::size_t>(window) + 1);
         const double local_mean = (prefix[b] - prefix[a]) / static_cast<double>(b - a);
-        st[i].valid = st[i].has_peak && st[i].strength >= floor && st[i].strength >= eo.threshold_alpha * local_mean;
+        Station& x = st[i];
+        x.valid = x.has_peak && x.strength >= floor && x.strength >= eo.threshold_alpha * local_mean;
+        if (!x.valid && eo.threshold_median && x.has_peak && x.strength >= floor &&
+            x.strength >= 0.5 * eo.threshold_alpha * local_mean) {
+          band.clear();
+          for (std::size_t k = a; k < b; ++k) {
+            band.push_back(st[k].band_mean);
+          }
+          const auto mid = band.begin() + static_cast<std::ptrdiff_t>(band.size() / 2);
+          std::nth_element(band.begin(), mid, band.end());
+          x.valid = x.strength >= eo.threshold_alpha * *mid;
+        }
       }
       // Grow when valid stations come within a gap of a scan end that is not a hard limit.
       bool grew = false;
@@ -1009,6 +1023,9 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
   }
   if (kinked) {
     return {};  // bent like a curve and no two lines explain it: not a line
+  }
+  if (eo.max_fit_rms_px > 0 && fit.rms > eo.max_fit_rms_px) {
+    return {};  // the points scatter over the band: noise peaks, or several edges, not one
   }
 
   EmplFitResult result;

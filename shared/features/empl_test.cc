@@ -477,5 +477,36 @@ TEST(EmplTest, AnEdgeWhoseContrastFadesStillReachesItsCorner) {
   EXPECT_GE(found, 18);
 }
 
+// A weak edge can run on from a strong collinear one: a plate's end, too short to be a line of its
+// own, continues as the faint edge between two faces below it. With eq. 7.29's mean as the local
+// level, the strong stretch raised the threshold over the next threshold_window_px of the weak edge,
+// whose confirmed segment then stopped about 10 px short of the junction, beyond its 5 px extension; the
+// median of the stations' band means (EmplOptions::threshold_median) does not see a short strong stretch.
+TEST(EmplTest, AWeakEdgeRunningOnFromAStrongOneReachesTheJunction) {
+  FeatureOptions median, mean;
+  mean.empl.threshold_median = false;
+  ASSERT_TRUE(median.empl.threshold_median);
+  const Vec2d corner(40.4, 40.3);
+  // A bright plate 9 px high from the corner to the right; below the corner's row, the face right of the
+  // weak edge is 12 grey levels above the one left of it.
+  const auto level = [&](const Vec2d& q) {
+    if (q.y() < corner.y()) return q.y() >= corner.y() - 9 && q.x() >= corner.x() && q.x() < 110 ? 180.0 : 80.0;
+    return q.x() >= corner.x() ? 92.0 : 80.0;
+  };
+  const cv::Mat clean = analytic::AreaMeanImage(120, 100, level, 1.0);
+  constexpr int kImages = 20;
+  const int found[2] = {CornerFoundIn(clean, 1.5, 1000, kImages, median, corner, 1.0),
+                        CornerFoundIn(clean, 1.5, 1000, kImages, mean, corner, 1.0)};
+  std::printf(
+      "junction of a weak edge running on from a strong one found in %d of %d images with the median level, "
+      "%d with the mean\n",
+      found[0],
+      kImages,
+      found[1]);
+  // Measured: 20 and 0 of 20.
+  EXPECT_GE(found[0], 18);
+  EXPECT_LE(found[1], found[0] - 10);
+}
+
 }  // namespace
 }  // namespace idi
