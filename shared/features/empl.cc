@@ -813,9 +813,7 @@ std::vector<EmplFitResult> EmplFitter::Fit(const EmplRequest& request) const {
           for (std::size_t k = a; k < b; ++k) {
             band.push_back(st[k].band_mean);
           }
-          const auto mid = band.begin() + static_cast<std::ptrdiff_t>(band.size() / 2);
-          std::nth_element(band.begin(), mid, band.end());
-          x.valid = x.strength >= eo.threshold_alpha * *mid;
+          x.valid = x.strength >= eo.threshold_alpha * Median(band);
         }
       }
       // Grow when valid stations come within a gap of a scan end that is not a hard limit.
