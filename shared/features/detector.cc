@@ -110,6 +110,7 @@ Status EmplOptions::Check() const {
 Status IdiOptions::Check() const {
   IDI_RETURN_IF_ERROR(InRange(min_angle_deg, 0.1, 89.0, "idi.min_angle_deg"));
   IDI_RETURN_IF_ERROR(NonNegative(merge_radius_px, "idi.merge_radius_px"));
+  IDI_RETURN_IF_ERROR(NonNegative(max_point_sigma_px, "idi.max_point_sigma_px"));
   IDI_RETURN_IF_ERROR(NonNegative(image_margin_px, "idi.image_margin_px"));
   return Status::Ok();
 }

@@ -202,6 +202,13 @@ TEST(DetectorTest, BadInputAndBadOptionsAreRejected) {
   EXPECT_NE(o.Check().message().find("empl.flat_band_max_texture_ratio"), std::string::npos) << o.Check().message();
   o.empl.flat_band_max_texture_ratio = -0.5;
   EXPECT_NE(o.Check().message().find("empl.flat_band_max_texture_ratio"), std::string::npos) << o.Check().message();
+  o = FeatureOptions{};
+  o.idi.max_point_sigma_px = std::nan("");
+  EXPECT_NE(o.Check().message().find("idi.max_point_sigma_px"), std::string::npos) << o.Check().message();
+  o.idi.max_point_sigma_px = -1;
+  EXPECT_NE(o.Check().message().find("idi.max_point_sigma_px"), std::string::npos) << o.Check().message();
+  o.idi.max_point_sigma_px = 0;
+  EXPECT_TRUE(o.Check().ok()) << o.Check().message();
   CameraModel cam;
   cam.params[kK1] = 0.1;
   auto det = FeatureDetector::Create(FeatureOptions{}, cam);

@@ -19,10 +19,11 @@ bool IntersectLinesWeighted(const std::vector<const EmplLine*>& lines, const Eig
 
 // Finds the IDI points of `lines` (§7.10): pairs meeting at least min_angle_deg apart whose
 // intersection lies on both confirmed segments or their unconfirmed extensions (§8.8.2); points
-// closer than merge_radius_px become one point of all their lines; with first_point_beyond_end, a line
-// stays only in the nearest point beyond each end of its segment (points left with fewer than two
-// lines go). Sets each line's point_ids
-// (ordered from p1 to p2) and returns the points with ids 0..n-1.
+// closer than merge_radius_px become one point of all their lines; a point its lines place no better
+// than max_point_sigma_px is dropped before the next rule, so that it does not stand in a line's way;
+// with first_point_beyond_end, a line stays only in the nearest point beyond each end of its segment
+// (points left with fewer than two lines go, and so do those that become too imprecise). Sets each
+// line's point_ids (ordered from p1 to p2) and returns the points with ids 0..n-1.
 std::vector<IdiPoint> FindIdiPoints(std::vector<EmplLine>* lines, const IdiOptions& options, int width, int height);
 
 // Distance of x beyond the confirmed segment of `line` measured along the line (0 when x projects

@@ -112,6 +112,42 @@ TEST(IdiPointsTest, ThreeLinesMeetingNearOnePlaceGiveOnePoint) {
   }
 }
 
+// Two faint, short lines meeting at 30 deg at their ends (angle sd 0.05 rad, offset sd 0.3 px at their
+// middles, as 10 DN edges of 20 px fit) place their corner only to about 1.6 px: not a point to report.
+// A corner of two well-fitted lines beside them stays. IdiOptions::max_point_sigma_px = 0 keeps both.
+TEST(IdiPointsTest, AnIntersectionItsLinesCannotPlaceIsNotAPoint) {
+  const double deg = 3.14159265358979323846 / 180;
+  const Vec2d cross(200, 120);
+  auto make = [&] {
+    return std::vector<EmplLine>{
+        MakeLine(0, Vec2d(40, 40), Vec2d(120, 40)),  // a corner of two strong lines
+        MakeLine(1, Vec2d(40, 40), Vec2d(45, 120)),
+        MakeLine(2, cross - Vec2d(20, 0), cross, 0.05 * 0.05, 0.3 * 0.3),
+        MakeLine(3, cross - 20 * Vec2d(std::cos(30 * deg), std::sin(30 * deg)), cross, 0.05 * 0.05, 0.3 * 0.3),
+    };
+  };
+  std::vector<EmplLine> lines = make();
+  const auto weak = IntersectWithCovariance(lines[2], lines[3]);
+  const auto strong = IntersectWithCovariance(lines[0], lines[1]);
+  ASSERT_TRUE(weak && strong);
+  ASSERT_GT(std::sqrt(weak->covariance.trace()), IdiOptions{}.max_point_sigma_px);
+  ASSERT_LT(std::sqrt(strong->covariance.trace()), 0.1);
+
+  const auto pts = FindIdiPoints(&lines, IdiOptions{}, 320, 240);
+  ASSERT_EQ(pts.size(), 1u);
+  EXPECT_EQ(pts[0].line_ids, (std::vector<int>{0, 1}));
+  EXPECT_TRUE(lines[2].point_ids.empty());
+  EXPECT_TRUE(lines[3].point_ids.empty());
+
+  IdiOptions keep_all;
+  keep_all.max_point_sigma_px = 0;
+  std::vector<EmplLine> lines2 = make();
+  const auto pts2 = FindIdiPoints(&lines2, keep_all, 320, 240);
+  ASSERT_EQ(pts2.size(), 2u);
+  EXPECT_EQ(pts2[1].line_ids, (std::vector<int>{2, 3}));
+  EXPECT_LT((pts2[1].xy - cross).norm(), 1e-6);
+}
+
 TEST(IdiPointsTest, ShallowOrParallelLinesMakeNoPoint) {
   std::vector<EmplLine> lines = {
       MakeLine(0, Vec2d(10, 50), Vec2d(150, 50)),
