@@ -746,6 +746,7 @@ void PrintCornerDetails(const sim::GroundTruth& truth,
     for (const IdiPoint& p : r.points) bd = std::min(bd, (p.xy - t).norm());
     if (bd < 2.0) continue;
     std::printf("  missed %s corner of %s at %.1f,%.1f; lines:", j.type.c_str(), j.object.c_str(), t.x(), t.y());
+    std::vector<const EmplLine*> matched;
     for (int id : j.lines) {
       auto it = lines.find(id);
       if (it == lines.end()) continue;
@@ -754,6 +755,7 @@ void PrintCornerDetails(const sim::GroundTruth& truth,
       // Which EMPL line explains it, and how far its confirmed segment stops from the corner (negative: it
       // reaches past it), with its extensions.
       if (const EmplLine* l = test::MatchTruthLine(r, tl.normal, to_fit(tl.p1_px), to_fit(tl.p2_px))) {
+        matched.push_back(l);
         const double s = l->Direction().dot(t - l->p1), len = l->length_px;
         const double gap = s < 0 ? -s : (s > len ? s - len : -std::min(s, len - s));
         std::printf(": line %d, %.1f px off, segment gap %+.1f, ext %.0f/%.0f",
@@ -767,15 +769,26 @@ void PrintCornerDetails(const sim::GroundTruth& truth,
       }
       std::printf("]");
     }
+    // Where the first two found lines meet, and how well they place it (IdiOptions::max_point_sigma_px).
+    if (matched.size() >= 2) {
+      if (const auto x = IntersectWithCovariance(*matched[0], *matched[1])) {
+        std::printf("; lines %d and %d meet %.1f px off, sigma %.2f px",
+                    matched[0]->id,
+                    matched[1]->id,
+                    (x->xy - t).norm(),
+                    std::sqrt(x->covariance.trace()));
+      }
+    }
     std::printf("\n");
   }
   for (const IdiPoint& p : r.points) {
     double bd = 1e9;
     for (const Vec2d& t : all_junctions) bd = std::min(bd, (p.xy - t).norm());
     if (bd <= 3.0) continue;
-    std::printf("  spurious point at %.1f,%.1f (%zu lines, nearest junction %.1f px)",
+    std::printf("  spurious point at %.1f,%.1f (sigma %.2f px, %zu lines, nearest junction %.1f px)",
                 p.xy.x(),
                 p.xy.y(),
+                std::sqrt(p.covariance.trace()),
                 p.line_ids.size(),
                 bd);
     for (int id : p.line_ids) {
