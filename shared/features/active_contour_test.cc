@@ -63,5 +63,52 @@ TEST(ActiveContourTest, CurveMeetingALineGivesAnIdiPoint) {
   EXPECT_GE(near, 1);
 }
 
+// The same arc crossing a line twice, given as a curve directly: fitted to 0.2 px RMS it places both
+// crossings, but a curve whose points scatter by 3 px RMS cannot (each crossing's sigma is over 1 px),
+// and IdiOptions::max_point_sigma_px keeps those out unless it is 0.
+TEST(ActiveContourTest, ACrossingTheCurveCannotPlaceIsNotAPoint) {
+  const Vec2d c(80, 55);
+  const double radius = 30, yline = 70;
+  auto run = [&](double curve_rms, const IdiOptions& options) {
+    std::vector<Curve> curves(1);
+    curves[0].id = 0;
+    curves[0].fit_rms_px = curve_rms;
+    for (int k = 0; k <= 24; ++k) {
+      const double a = 3.14159265358979323846 * k / 24.0;  // the lower half of the circle, left to right
+      curves[0].points.push_back(c + radius * Vec2d(-std::cos(a), std::sin(a)));
+    }
+    std::vector<EmplLine> lines(1);
+    EmplLine& l = lines[0];
+    l.id = 0;
+    l.normal = Vec2d(0, 1);
+    l.offset = yline;
+    l.p1 = Vec2d(30, yline);
+    l.p2 = Vec2d(130, yline);
+    l.extension1 = l.p1 - Vec2d(5, 0);
+    l.extension2 = l.p2 + Vec2d(5, 0);
+    l.length_px = 100;
+    // Angle sd 0.001 rad and offset sd 0.03 px at the segment's middle (x = 80).
+    Eigen::Matrix2d j;
+    j << 1, 0, -80, 1;
+    l.covariance = j * Eigen::Vector2d(1e-6, 9e-4).asDiagonal() * j.transpose();
+    std::vector<IdiPoint> points;
+    AddCurveLinePoints(options, &curves, &lines, &points);
+    return points;
+  };
+  const double dx = std::sqrt(radius * radius - (yline - c.y()) * (yline - c.y()));
+  const auto precise = run(0.2, IdiOptions{});
+  ASSERT_EQ(precise.size(), 2u);
+  for (const IdiPoint& p : precise) {
+    EXPECT_NEAR(std::fabs(p.xy.x() - c.x()), dx, 0.3);
+    EXPECT_LT(std::sqrt(p.covariance.trace()), 0.3);
+  }
+  EXPECT_TRUE(run(3.0, IdiOptions{}).empty());
+  IdiOptions keep_all;
+  keep_all.max_point_sigma_px = 0;
+  const auto scattered = run(3.0, keep_all);
+  ASSERT_EQ(scattered.size(), 2u);
+  for (const IdiPoint& p : scattered) EXPECT_GT(std::sqrt(p.covariance.trace()), IdiOptions{}.max_point_sigma_px);
+}
+
 }  // namespace
 }  // namespace idi

@@ -214,12 +214,12 @@ struct IdiOptions {
   // along the segment): its extension bridges the blur where its edge ends, not the way to a corner
   // beyond that one.
   bool first_point_beyond_end = true;
-  // A point whose position standard deviation, sqrt(trace) of the covariance its lines' fits give it,
-  // exceeds this (px) is not reported: its lines are too weak or too short to place it, and on the
-  // twin's object scenes such points are mostly where faint texture or noise lines cross: with it,
-  // features_bench D's spurious points went 6, 6, 7, 3 -> 3, 3, 4, 2 and its corners found 913 -> 911
-  // of 1006 (the two lost: 13 DN edges, and a 16 px line). Shallow wedges (section F, 12-20 deg) lose
-  // some of their few, mostly far-off points. 0 keeps all.
+  // A point whose position standard deviation, sqrt(trace) of the covariance its lines' (or curve's)
+  // fits give it, exceeds this (px) is not reported: its lines are too weak or too short to place it,
+  // and on the twin's object scenes such points are mostly where faint texture or noise lines cross:
+  // with it, features_bench D's spurious points went 6, 6, 7, 3 -> 3, 2, 3, 2 and its corners found
+  // 913 -> 911 of 1006 (the two lost: 13 DN edges, and a 16 px line). Sections B and C are unchanged.
+  // 0 keeps all.
   double max_point_sigma_px = 1.0;
 
   Status Check() const;
