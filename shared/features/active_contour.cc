@@ -306,8 +306,7 @@ void AddCurveLinePoints(const IdiOptions& options, std::vector<Curve>* curves, s
           }
         }
         // A new point the curve and the line cannot place (IdiOptions::max_point_sigma_px) is not reported.
-        const double max_sigma = options.max_point_sigma_px;
-        if (merged || (max_sigma > 0 && p.covariance.trace() > max_sigma * max_sigma)) {
+        if (merged || !PlacedPreciselyEnough(p, options)) {
           continue;
         }
         p.id = static_cast<int>(points->size());

@@ -58,6 +58,11 @@ std::optional<LineIntersection> IntersectWithCovariance(const EmplLine& a, const
   return out;
 }
 
+bool PlacedPreciselyEnough(const IdiPoint& point, const IdiOptions& options) {
+  const double max_sigma = options.max_point_sigma_px;
+  return max_sigma <= 0 || point.covariance.trace() <= max_sigma * max_sigma;
+}
+
 double DistanceBeyondSegment(const EmplLine& line, const Eigen::Vector2d& x) {
   const Eigen::Vector2d d = line.p2 - line.p1;
   const double len = d.norm();
@@ -83,8 +88,6 @@ std::vector<IdiPoint> FindIdiPoints(std::vector<EmplLine>* lines_io, const IdiOp
     lines[i].point_ids.clear();
   }
   const double m = options.image_margin_px;
-  const double max_var = options.max_point_sigma_px * options.max_point_sigma_px;
-  auto precise_enough = [&](const IdiPoint& p) { return max_var <= 0 || p.covariance.trace() <= max_var; };
   for (std::size_t i = 0; i < n; ++i) {
     for (std::size_t j = i + 1; j < n; ++j) {
       const EmplLine& a = lines[i];
@@ -146,7 +149,7 @@ std::vector<IdiPoint> FindIdiPoints(std::vector<EmplLine>* lines_io, const IdiOp
       ls.push_back(&lines[static_cast<std::size_t>(id)]);
     }
     IdiPoint p;
-    if (!IntersectLinesWeighted(ls, mean, &p.xy, &p.covariance) || !precise_enough(p)) {
+    if (!IntersectLinesWeighted(ls, mean, &p.xy, &p.covariance) || !PlacedPreciselyEnough(p, options)) {
       continue;
     }
     p.line_ids = ids;  // indices into `lines` for now (ids below)
@@ -197,7 +200,9 @@ std::vector<IdiPoint> FindIdiPoints(std::vector<EmplLine>* lines_io, const IdiOp
           ids.push_back(id);
           ls.push_back(&lines[static_cast<std::size_t>(id)]);
         }
-        if (ls.size() < 2 || !IntersectLinesWeighted(ls, p.xy, &p.xy, &p.covariance) || !precise_enough(p)) continue;
+        if (ls.size() < 2 || !IntersectLinesWeighted(ls, p.xy, &p.xy, &p.covariance) ||
+            !PlacedPreciselyEnough(p, options))
+          continue;
         p.line_ids = ids;
       }
       kept.push_back(std::move(p));

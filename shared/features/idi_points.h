@@ -26,6 +26,10 @@ bool IntersectLinesWeighted(const std::vector<const EmplLine*>& lines, const Eig
 // line's point_ids (ordered from p1 to p2) and returns the points with ids 0..n-1.
 std::vector<IdiPoint> FindIdiPoints(std::vector<EmplLine>* lines, const IdiOptions& options, int width, int height);
 
+// Whether `point`'s own standard deviation, sqrt(trace) of its covariance, is within
+// options.max_point_sigma_px (always, when that is 0): points beyond it are not reported.
+bool PlacedPreciselyEnough(const IdiPoint& point, const IdiOptions& options);
+
 // Distance of x beyond the confirmed segment of `line` measured along the line (0 when x projects
 // inside [p1, p2]).
 double DistanceBeyondSegment(const EmplLine& line, const Eigen::Vector2d& x);
