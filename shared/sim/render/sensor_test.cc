@@ -2,9 +2,12 @@
 // gain * signal + read^2 + 1/12 (shot noise, read noise, rounding), for every signal level.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
+#include "shared/sim/render/noise_rng.h"
 #include "shared/sim/render/render.h"
 
 namespace idi::sim {
@@ -124,6 +127,65 @@ TEST(SensorTest, SameSeedSameNoiseAndChannelsAreIndependent) {
   d1 -= cv::mean(d1)[0];
   const double corr = d0.dot(d1) / std::sqrt(d0.dot(d0) * d1.dot(d1));
   EXPECT_LT(std::abs(corr), 0.1);
+}
+
+// The sensor as it was first written, one pixel and one draw at a time from the generator: ApplySensor
+// draws its words in blocks and takes runs of pixels at once, and must give every pixel the same words
+// and so the same value (the noise an image gets for a seed is part of what the tests that use rendered
+// images rely on).
+cv::Mat SensorOnePixelAtATime(const cv::Mat& irr, const SensorOptions& s, uint64_t seed) {
+  cv::Mat out(irr.rows, irr.cols, CV_MAKETYPE(CV_8U, irr.channels()));
+  internal::Xoshiro256 rng(seed ^ 0x5EEDF00DULL);
+  const bool shot = s.noise && s.gain_dn_per_electron > 0, read = s.noise && s.read_noise_dn > 0;
+  const double gain = s.gain_dn_per_electron, read_var = read ? s.read_noise_dn * s.read_noise_dn : 0.0;
+  for (int r = 0; r < irr.rows; ++r) {
+    for (int k = 0; k < irr.cols * irr.channels(); ++k) {
+      double v = std::max(0.0, static_cast<double>(irr.ptr<float>(r)[k]));
+      if (shot && v > 30 * gain) {
+        v += std::sqrt(gain * v + read_var) * internal::NormalFrom(rng);
+      } else {
+        if (shot) v = gain * internal::PoissonFrom(rng, v / gain);
+        if (read) v += s.read_noise_dn * internal::NormalFrom(rng);
+      }
+      out.ptr<uint8_t>(r)[k] = static_cast<uint8_t>(std::nearbyint(std::clamp(v + s.black_level_dn, 0.0, 255.0)));
+    }
+  }
+  return out;
+}
+
+TEST(SensorTest, BlockDrawsGiveEveryPixelTheWordsOfOneAtATime) {
+  // Rows of 101 values (not a multiple of the runs) from below 0 to above 255, dark pixels (Poisson
+  // draws, whose word count varies) scattered among bright ones, NaN, and read noise high enough that
+  // many words fall outside their ziggurat rectangles and into the wedges and the tail.
+  cv::Mat irr(37, 101, CV_32FC1);
+  for (int r = 0; r < irr.rows; ++r) {
+    for (int c = 0; c < irr.cols; ++c) {
+      const int i = r * irr.cols + c;
+      irr.at<float>(r, c) = i % 13 == 0 ? 1.5f : static_cast<float>(-20 + (i * 37) % 300);
+    }
+  }
+  irr.at<float>(3, 7) = std::numeric_limits<float>::quiet_NaN();
+  cv::Mat colour;
+  cv::merge(std::vector<cv::Mat>{irr, irr * 0.5, irr + 10}, colour);
+  std::vector<SensorOptions> variants(5);
+  variants[1].read_noise_dn = 0;         // shot noise alone
+  variants[2].gain_dn_per_electron = 0;  // read noise alone
+  variants[3].read_noise_dn = 40;        // wide normals
+  variants[3].black_level_dn = 4;
+  variants[4].noise = false;  // rounding and clipping only
+  int differing = 0, compared = 0;
+  for (std::size_t v = 0; v < variants.size(); ++v) {
+    for (const cv::Mat& image : {irr, colour}) {
+      for (const uint64_t seed : {1ULL, 77ULL, 123456789ULL}) {
+        const cv::Mat a = ApplySensor(image, variants[v], seed);
+        const cv::Mat b = SensorOnePixelAtATime(image, variants[v], seed);
+        ASSERT_EQ(a.type(), b.type());
+        differing += cv::countNonZero(a.reshape(1) != b.reshape(1));
+        compared += static_cast<int>(a.total()) * a.channels();
+      }
+    }
+    EXPECT_EQ(differing, 0) << "variant " << v << ": " << differing << " of " << compared << " values differ";
+  }
 }
 
 TEST(SensorTest, BadOptionsAreRejected) {
