@@ -414,6 +414,34 @@ IDI_AVX512 __m512d Max8(__m512d a, __m512d b) {
 IDI_AVX512 __m512d Floor8(__m512d v) {
   return _mm512_mask_roundscale_pd(_mm512_setzero_pd(), 0xFF, v, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC);
 }
+// The minimum of the eight lanes, in every lane.
+IDI_AVX512 __m256i MinOverLanes(__m256i v) {
+  v = _mm256_min_epi32(v, _mm256_permute2x128_si256(v, v, 1));
+  v = _mm256_min_epi32(v, _mm256_shuffle_epi32(v, _MM_SHUFFLE(1, 0, 3, 2)));
+  return _mm256_min_epi32(v, _mm256_shuffle_epi32(v, _MM_SHUFFLE(2, 3, 0, 1)));
+}
+// The four corners of eight points' cells (lattice cell (ix, iy) of each lane) when the points lie within
+// three cells by three (a row of pixels on the finer octaves, most of the time): the 4 x 4 lattice values
+// around them are four row loads, and each corner is a permutation of them instead of a gather. False
+// (nothing written) for points spread wider, or where the patch would wrap around the lattice's columns.
+IDI_AVX512 bool CornersFromPatch(
+    const double* lattice, __m256i ix, __m256i iy, __m512d* a, __m512d* b, __m512d* c, __m512d* d) {
+  const __m256i x_min = MinOverLanes(ix), y_min = MinOverLanes(iy);
+  const __m256i dx = _mm256_sub_epi32(ix, x_min), dy = _mm256_sub_epi32(iy, y_min);  // >= 0
+  const __m256i beyond = _mm256_cmpgt_epi32(_mm256_max_epi32(dx, dy), _mm256_set1_epi32(2));
+  const int x0 = _mm256_cvtsi256_si32(x_min), y0 = _mm256_cvtsi256_si32(y_min) & 255;
+  if (!_mm256_testz_si256(beyond, beyond) || y0 > 252) return false;
+  const auto row = [&](int k) { return lattice + (((x0 + k) & 255) << 8) + y0; };
+  // Slot 4 r + q: row x0 + r, column y0 + q (r, q in 0 .. 3); slots 0-7 in lo, 8-15 in hi.
+  const __m512d lo = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_loadu_pd(row(0))), _mm256_loadu_pd(row(1)), 1);
+  const __m512d hi = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_loadu_pd(row(2))), _mm256_loadu_pd(row(3)), 1);
+  const __m512i slot = _mm512_cvtepi32_epi64(_mm256_add_epi32(_mm256_slli_epi32(dx, 2), dy));  // (ix, iy)
+  *a = _mm512_permutex2var_pd(lo, slot, hi);
+  *b = _mm512_permutex2var_pd(lo, _mm512_add_epi64(slot, _mm512_set1_epi64(4)), hi);  // (ix + 1, iy)
+  *c = _mm512_permutex2var_pd(lo, _mm512_add_epi64(slot, _mm512_set1_epi64(1)), hi);  // (ix, iy + 1)
+  *d = _mm512_permutex2var_pd(lo, _mm512_add_epi64(slot, _mm512_set1_epi64(5)), hi);  // (ix + 1, iy + 1)
+  return true;
+}
 
 // ShadeFourAvx2 on eight points with AVX-512.
 [[gnu::target("avx512f")]] bool ShadeEightAvx512(const Prepared& prep,
@@ -501,7 +529,7 @@ IDI_AVX512 __m512d Floor8(__m512d v) {
         b = _mm512_set1_pd(lattice[ib0]);
         c = _mm512_set1_pd(lattice[ic0]);
         d = _mm512_set1_pd(lattice[id0]);
-      } else {
+      } else if (!CornersFromPatch(lattice, ix, iy, &a, &b, &c, &d)) {
         a = Gather8(lattice, ia);
         b = Gather8(lattice, _mm256_add_epi32(i1, j0));
         c = Gather8(lattice, _mm256_add_epi32(i0, j1));
