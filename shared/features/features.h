@@ -218,7 +218,8 @@ struct IdiOptions {
   // fits give it, exceeds this (px) is not reported: its lines are too weak or too short to place it,
   // and on the twin's object scenes such points are mostly where faint texture or noise lines cross:
   // with it, features_bench D's spurious points went 6, 6, 7, 3 -> 3, 2, 3, 2 and its corners found
-  // 913 -> 911 of 1006 (the two lost: 13 DN edges, and a 16 px line). Sections B and C are unchanged.
+  // 913 -> 911 of 1006 (the two lost: 13 DN edges, and a 16 px line), on one noise draw (draw 0 of
+  // --draws; over 3 draws the spurious points are 16, 10, 9 and 12). Sections B and C are unchanged.
   // 0 keeps all.
   double max_point_sigma_px = 1.0;
 

@@ -1,7 +1,11 @@
 // The vision front end on the twin's object scenes (issue 4's corner statistics, features_bench section
 // D): boxes, prisms and L-brackets on a table before a wall, rendered with the default noise and blur,
-// 12 scenes seen from 1.2 m. Guards the rates measured there; the goal (99 % found, under 2 %
-// spurious) is reached for spurious points without clutter and at sigma_b 2, not yet for the rest.
+// 12 scenes seen from 1.2 m, each with 3 draws of the sensor noise. Guards the rates measured there; the
+// goal (99 % found, under 2 % spurious) is reached for spurious points at sigma_b 1, not yet for the rest.
+//
+// The rates are pooled over noise draws because one draw is too few: over 9 draws of the same 12 scenes
+// the spurious points of a row ranged from 3 to 8 (no clutter) and from 2 to 14 (sigma_b 2), and a limit
+// set from one draw passed or failed with the draw, not with the code.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -18,7 +22,8 @@ namespace idi {
 namespace {
 
 // The corners of features_bench D's rows without distortion: 12 scenes each, without or with clutter (a
-// textured table, wall and faces), PSF sigma_b 1 or 2.
+// textured table, wall and faces), PSF sigma_b 1 or 2, each scene with the noise draws 0, 1 and 2 of
+// features_bench --draws (seed 900 + scene + 1000 x draw).
 test::CornerScore ScoreScenes(bool clutter, const FeatureOptions& options, double blur = 1.0) {
   CameraModel cam;
   cam.width = 640;
@@ -33,17 +38,19 @@ test::CornerScore ScoreScenes(bool clutter, const FeatureOptions& options, doubl
     const sim::Scene scene = test::RandomObjectScene(rng, clutter);
     const double az = 0.3 * (k % 5) - 0.6;
     const Rigid3d cam_from_world = test::LookAt(Vec3d(1100 * std::sin(az), -1100 * std::cos(az), 950), Vec3d(0, 0, 60));
-    sim::RenderOptions o;
-    o.psf_sigma_px = blur;
-    o.seed = 900 + static_cast<std::uint64_t>(k);
-    sim::GroundTruth truth;
-    auto img = sim::RenderScene(scene, cam, cam_from_world, o, &truth);
-    EXPECT_TRUE(img.ok()) << img.status().ToString();
-    if (!img.ok()) continue;
-    auto r = det->Detect(*img);
-    EXPECT_TRUE(r.ok()) << r.status().ToString();
-    if (!r.ok()) continue;
-    score.Add(test::ScoreCorners(truth, *r, [](const Vec2d& px) { return px; }));
+    for (std::uint64_t draw = 0; draw < 3; ++draw) {
+      sim::RenderOptions o;
+      o.psf_sigma_px = blur;
+      o.seed = 900 + static_cast<std::uint64_t>(k) + 1000 * draw;
+      sim::GroundTruth truth;
+      auto img = sim::RenderScene(scene, cam, cam_from_world, o, &truth);
+      EXPECT_TRUE(img.ok()) << img.status().ToString();
+      if (!img.ok()) continue;
+      auto r = det->Detect(*img);
+      EXPECT_TRUE(r.ok()) << r.status().ToString();
+      if (!r.ok()) continue;
+      score.Add(test::ScoreCorners(truth, *r, [](const Vec2d& px) { return px; }));
+    }
   }
   return score;
 }
@@ -58,7 +65,7 @@ std::string Misses(const test::CornerScore& s) {
 TEST(FeatureScenesTest, CornersOfObjectScenesAreFoundWithFewSpuriousPoints) {
   for (const bool clutter : {false, true}) {
     const test::CornerScore score = ScoreScenes(clutter, FeatureOptions{});
-    ASSERT_GT(score.total, 150);
+    ASSERT_GT(score.total, 450);
     const double found = static_cast<double>(score.found) / score.total;
     const double spurious = static_cast<double>(score.spurious) / score.points;
     std::printf("clutter %d: %d of %d corners found, %d of %d points spurious\n",
@@ -67,15 +74,12 @@ TEST(FeatureScenesTest, CornersOfObjectScenesAreFoundWithFewSpuriousPoints) {
                 score.total,
                 score.spurious,
                 score.points);
-    // Measured without clutter: 241 of 261 (0.923) found, 4 of 267 points (0.015) spurious; with clutter
-    // 227 of 255 (0.890) and 7 of 256 (0.027). Before each station took the gradient peak nearest the
-    // line (EmplOptions::peak_proximity_sigma_px) and a noise floor instead of 0.3 of the line's median
-    // strength: 236 and 226 found. Without the curve test's end trim (EmplOptions::curve_end_trim_px = 0)
-    // 235 and 222 found then; with 4 px extensions, 231 and 222. Before the scenes kept their solids apart
-    // (tests/support/object_scenes.cc) the points where solids cut each other counted as spurious: 9 %.
-    EXPECT_GE(found, clutter ? 0.88 : 0.91) << "clutter " << clutter << ": " << Misses(score);
-    EXPECT_LE(spurious, clutter ? 0.035 : 0.025)
-        << "clutter " << clutter << ": " << score.spurious << " of " << score.points;
+    // Measured over draws 0-2: without clutter 729 of 783 (0.931) found, 16 of 815 points (0.020)
+    // spurious; with clutter 693 of 765 (0.906) and 10 of 777 (0.013). Over draws 3-5 and 6-8: found 0.932
+    // and 0.932, 0.907 and 0.907; spurious 0.015 and 0.016, 0.017 and 0.022. (With draw 0 alone, as
+    // before: 245 of 261 and 233 of 255 found, 3 of 273 and 2 of 258 spurious.)
+    EXPECT_GE(found, clutter ? 0.89 : 0.915) << "clutter " << clutter << ": " << Misses(score);
+    EXPECT_LE(spurious, 0.03) << "clutter " << clutter << ": " << score.spurious << " of " << score.points;
   }
 }
 
@@ -83,15 +87,17 @@ TEST(FeatureScenesTest, CornersOfObjectScenesAreFoundWithFewSpuriousPoints) {
 // grow with the edge's blur (EmplOptions::min_extension_blur_sigmas) still meet there.
 TEST(FeatureScenesTest, BlurredCornersAreFoundByExtensionsThatGrowWithTheBlur) {
   const test::CornerScore score = ScoreScenes(true, FeatureOptions{}, 2.0);
-  ASSERT_GT(score.total, 150);
+  ASSERT_GT(score.total, 450);
   const double found = static_cast<double>(score.found) / score.total;
   const double spurious = static_cast<double>(score.spurious) / score.points;
   std::printf(
       "%d of %d corners found, %d of %d points spurious\n", score.found, score.total, score.spurious, score.points);
-  // Measured: 224 of 256 (0.875) found, 2 of 242 points spurious; with extensions of at least 5 px only
-  // (before the nearest-peak stations), 213 (0.832) found.
-  EXPECT_GE(found, 0.86) << Misses(score);
-  EXPECT_LE(spurious, 0.02) << score.spurious << " of " << score.points;
+  // Measured over draws 0-2: 664 of 768 (0.865) found, 12 of 732 points (0.016) spurious; over draws 3-5
+  // and 6-8: 0.862 and 0.858 found, 0.034 and 0.034 spurious: the 2 % goal is not met at sigma_b 2 (9
+  // draws: 0.028). With extensions of at least 5 px only (before the nearest-peak stations, draw 0):
+  // 213 of 256 (0.832) found.
+  EXPECT_GE(found, 0.845) << Misses(score);
+  EXPECT_LE(spurious, 0.045) << score.spurious << " of " << score.points;
 }
 
 // A straight edge between two junctions bends at both ends (its last pixels are pulled towards the
@@ -104,8 +110,10 @@ TEST(FeatureScenesTest, ShortEdgesBetweenJunctionsAreLinesNotCurves) {
   const test::CornerScore trimmed = ScoreScenes(true, FeatureOptions{});
   const test::CornerScore whole = ScoreScenes(true, whole_run);
   std::printf("trimmed %d, whole run %d of %d corners found\n", trimmed.found, whole.found, trimmed.total);
-  // Measured: 227 and 223 of 255 (before the nearest-peak stations 226 and 222).
-  EXPECT_GE(trimmed.found, whole.found + 3) << "trimmed " << Misses(trimmed) << "; whole run " << Misses(whole);
+  // Measured over draws 0-2: 693 and 682 of 765; draws 3-5: 694 and 686; 6-8: 694 and 682 (the trimmed
+  // test finds 8-12 more; 5 more with another seeding of the sensor's generator). One draw alone gave 1 to
+  // 5 more, too few to tell the two apart.
+  EXPECT_GE(trimmed.found, whole.found + 4) << "trimmed " << Misses(trimmed) << "; whole run " << Misses(whole);
 }
 
 }  // namespace
