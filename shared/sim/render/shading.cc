@@ -421,7 +421,7 @@ IDI_AVX512 __m256i MinOverLanes(__m256i v) {
   return _mm256_min_epi32(v, _mm256_shuffle_epi32(v, _MM_SHUFFLE(2, 3, 0, 1)));
 }
 // The four corners of eight points' cells (lattice cell (ix, iy) of each lane) when the points lie within
-// three cells by three (a row of pixels on the finer octaves, most of the time): the 4 x 4 lattice values
+// three cells by three (a row of neighbouring pixels, most of the time): the 4 x 4 lattice values
 // around them are four row loads, and each corner is a permutation of them instead of a gather. False
 // (nothing written) for points spread wider, or where the patch would wrap around the lattice's columns.
 IDI_AVX512 bool CornersFromPatch(
@@ -516,21 +516,11 @@ IDI_AVX512 bool CornersFromPatch(
       const __m256i i1 = _mm256_slli_epi32(_mm256_and_si256(_mm256_add_epi32(ix, _mm256_set1_epi32(1)), mask), 8);
       const __m256i j0 = _mm256_and_si256(iy, mask);
       const __m256i j1 = _mm256_and_si256(_mm256_add_epi32(iy, _mm256_set1_epi32(1)), mask);
-      // The cell's four corners. Where the eight points lie in one cell (the coarser octaves, most of
-      // the time) four loads do instead of four gathers, which are most of this kernel's time.
-      const __m256i ia = _mm256_add_epi32(i0, j0);
-      const int ia0 = _mm256_cvtsi256_si32(ia);
+      // The cells' four corners: from a patch of the lattice where the eight points lie close together
+      // (nearly always), else by gathers, which were most of this kernel's time.
       __m512d a, b, c, d;
-      if (_mm256_movemask_epi8(_mm256_cmpeq_epi32(ia, _mm256_set1_epi32(ia0))) == -1) {
-        const int ib0 = _mm256_cvtsi256_si32(i1) + _mm256_cvtsi256_si32(j0);
-        const int ic0 = _mm256_cvtsi256_si32(i0) + _mm256_cvtsi256_si32(j1);
-        const int id0 = _mm256_cvtsi256_si32(i1) + _mm256_cvtsi256_si32(j1);
-        a = _mm512_set1_pd(lattice[ia0]);
-        b = _mm512_set1_pd(lattice[ib0]);
-        c = _mm512_set1_pd(lattice[ic0]);
-        d = _mm512_set1_pd(lattice[id0]);
-      } else if (!CornersFromPatch(lattice, ix, iy, &a, &b, &c, &d)) {
-        a = Gather8(lattice, ia);
+      if (!CornersFromPatch(lattice, ix, iy, &a, &b, &c, &d)) {
+        a = Gather8(lattice, _mm256_add_epi32(i0, j0));
         b = Gather8(lattice, _mm256_add_epi32(i1, j0));
         c = Gather8(lattice, _mm256_add_epi32(i0, j1));
         d = Gather8(lattice, _mm256_add_epi32(i1, j1));
