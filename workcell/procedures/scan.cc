@@ -763,9 +763,17 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
   }
   if (!plans.ok()) {
     if (!no_grasp_fits) return plans.status();  // already named by its step
+    if (!o.pick) {
+      // A scan without a pick asked for the model, which is there: that no grasp fits it is part of
+      // the report, not a failure of the scan.
+      spdlog::warn("scan: {}; the model is reported without a grasp", plans.status().message());
+      report.no_grasp_reason = std::string(plans.status().message());
+      return report;
+    }
     return fail(plans.status(), "grasp planning");
   }
   // 4. The pick: the grasp in robot 2's base (eq. 3.4).
+  report.grasp_found = true;
   report.grasp = plans->front();
   if (!o.pick) return report;
 
@@ -909,12 +917,17 @@ nlohmann::json ScanReportJson(const ScanReport& r) {
   }
   j["reprojection_rms_px"] = {{"before", r.structure.adjustment.initial_rms_px}, {"after", r.structure.adjustment.final_rms_px}};
   j["rail_stop_shift_mm"] = r.structure.adjustment.mount_shift_mm;  // per station, the adjustment's estimate
-  const Vec3d g = r.grasp.world_from_grasp.translation;
-  j["grasp"] = {{"centre_mm", {g.x(), g.y(), g.z()}},
-                {"width_mm", r.grasp.width_mm},
-                {"spread_deg", RadToDeg(r.grasp.spread_rad)},
-                {"friction_margin_deg", RadToDeg(r.grasp.friction_margin_rad)},
-                {"quality", r.grasp.quality}};
+  if (r.grasp_found) {
+    const Vec3d g = r.grasp.world_from_grasp.translation;
+    j["grasp"] = {{"centre_mm", {g.x(), g.y(), g.z()}},
+                  {"width_mm", r.grasp.width_mm},
+                  {"spread_deg", RadToDeg(r.grasp.spread_rad)},
+                  {"friction_margin_deg", RadToDeg(r.grasp.friction_margin_rad)},
+                  {"quality", r.grasp.quality}};
+  } else {
+    j["grasp"] = nullptr;
+    j["no_grasp_reason"] = r.no_grasp_reason;
+  }
   j["pick"] = {
       {"attempted", r.pick.attempted},
       {"grasped", r.pick.grasped},

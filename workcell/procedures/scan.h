@@ -132,14 +132,19 @@ struct ScanReport {
   bool cylinder = false;
   Vec2d cylinder_axis_xy = Vec2d::Zero();
   double cylinder_radius_mm = 0, cylinder_top_z = 0;
-  GraspPlan grasp;                 // world frame (R1)
+  // The best grasp, world frame (R1). A scan without a pick (ScanOptions::pick false) still returns the
+  // model when no grasp fits it: then grasp_found is false and no_grasp_reason says why.
+  bool grasp_found = false;
+  std::string no_grasp_reason;
+  GraspPlan grasp;
   Rigid3d base2_from_grasp;        // robot 2's base frame at its rail position
   PickReport pick;
   bool second_round = false;  // the extra stations were taken (no grasp fitted the first model)
   double acquisition_s = 0, reconstruction_s = 0, pick_s = 0;
 };
 
-// The scan, and the pick when options.pick. Errors name the step; on cancel or a device error both arms
+// The scan, and the pick when options.pick (with a pick, no grasp fitting the model is an error; without,
+// a report with grasp_found false). Errors name the step; on cancel or a device error both arms
 // are told to stop.
 Result<ScanReport> ScanAndPick(ScanDevices& devices, const ScanCalibration& calibration, const ScanOptions& options);
 

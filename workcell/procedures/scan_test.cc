@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <string>
 #include <vector>
 
 #include "shared/util/units.h"
@@ -88,9 +89,13 @@ TEST(ScanTest, CorrespondenceOfBracketScenesIsPrecise) {
     ScanTwin twin(to);
     ScanDevices d = twin.Devices();
     ScanOptions o = twin.SetupOptions();
+    // The four stations' views alone, whether or not a grasp fits their model (that depends on the noise's
+    // draw: with the sensor seeded otherwise, a trial, scenes 1 and 2 fitted none and took the second round).
     o.pick = false;
+    o.extra_azimuths_deg.clear();
     auto r = ScanAndPick(d, twin.TrueCalibration(), o);
     ASSERT_TRUE(r.ok()) << r.status().ToString();
+    ASSERT_EQ(r->views.size(), 2 * o.azimuths_deg.size());
     const CorrespondenceTruth c = twin.EvaluateCorrespondence(*r);
     ASSERT_TRUE(c.scored) << "scene " << scene << ": frames and views do not line up";
     pooled.Add(c);
@@ -156,61 +161,100 @@ TEST(ScanTest, RobotTwoTakesTheBestGraspItCanReach) {
   EXPECT_FALSE(ScanAndPick(d2, again.TrueCalibration(), o).ok()) << "with the best grasp alone robot 2 cannot pick it";
 }
 
-// In this scene (seed 77, bracket 9) the four stations' model lacks a face the grasp needs (the planner
-// finds no grasp on it; on the true bracket it finds 8): the scan must take the second round of stations,
-// rebuild the model from all 14 views and pick the bracket. Without the second round it fails.
+// Scenes where the four stations' model lacks a face the grasp needs (the planner finds no grasp on it;
+// on the true bracket it finds 8) depend on the image noise's draw: with the sensor's generator as it is,
+// seed 77's brackets 5, 9 and 33; with it seeded otherwise (a trial), 21, 32 and 33. The test takes the
+// first of these candidates that needs the second round, and fails when none does. There the scan must take
+// the second round of stations, rebuild the model from all 14 views and pick the bracket. Without the
+// second round the pick fails; a scan without a pick still returns the model, with no grasp.
 TEST(ScanTest, SecondRoundOfStationsWhenNoGraspFitsTheModel) {
   ScanTwinOptions to;
   to.seed = 77;
   to.kind = sim::ObjectKind::kLBracket;
-  to.scene = 9;
   to.keep_truth = true;
-  ScanTwin twin(to);
-  ScanDevices d = twin.Devices();
-  ScanOptions o = twin.SetupOptions();
-  auto r = ScanAndPick(d, twin.TrueCalibration(), o);
-  ASSERT_TRUE(r.ok()) << r.status().ToString();
-  EXPECT_TRUE(r->second_round) << "a grasp fitted the first model: this scene no longer tests the second round";
-  EXPECT_EQ(r->views.size(), 2 * (o.azimuths_deg.size() + o.extra_azimuths_deg.size()));
-  const ScanTruth t = twin.Evaluate(*r, o);
-  EXPECT_TRUE(t.held && t.placed) << t.grasp_reason << "; " << r->pick.outcome;
-  EXPECT_LT(t.max_vertex_error_mm, 0.6);
-  // The extra views match the object's corners as well as the first round's: the pairs at no true corner
-  // are background past the table, not false matches.
-  const CorrespondenceTruth m = twin.EvaluateCorrespondence(*r);
-  ASSERT_TRUE(m.scored);
-  EXPECT_GE(m.precision(), 0.99) << m.false_matches << " false of " << m.true_matches + m.false_matches;
-  o.extra_azimuths_deg.clear();
-  ScanTwin again(to);
-  ScanDevices d2 = again.Devices();
-  const auto without = ScanAndPick(d2, again.TrueCalibration(), o);
-  ASSERT_FALSE(without.ok()) << "without the second round the scan picked it too";
-  EXPECT_EQ(without.status().code(), StatusCode::kNotFound) << without.status().ToString();
+  bool tested = false;
+  for (const unsigned scene : {9u, 33u, 5u, 21u, 32u}) {
+    to.scene = scene;
+    ScanTwin twin(to);
+    ScanDevices d = twin.Devices();
+    ScanOptions o = twin.SetupOptions();
+    auto r = ScanAndPick(d, twin.TrueCalibration(), o);
+    ASSERT_TRUE(r.ok()) << "scene " << scene << ": " << r.status().ToString();
+    if (!r->second_round) continue;
+    tested = true;
+    SCOPED_TRACE("scene " + std::to_string(scene));
+    EXPECT_TRUE(r->grasp_found);
+    EXPECT_EQ(r->views.size(), 2 * (o.azimuths_deg.size() + o.extra_azimuths_deg.size()));
+    const ScanTruth t = twin.Evaluate(*r, o);
+    EXPECT_TRUE(t.held && t.placed) << t.grasp_reason << "; " << r->pick.outcome;
+    EXPECT_LT(t.max_vertex_error_mm, 0.6);
+    // The extra views match the object's corners as well as the first round's: the pairs at no true corner
+    // are background past the table, not false matches.
+    const CorrespondenceTruth m = twin.EvaluateCorrespondence(*r);
+    ASSERT_TRUE(m.scored);
+    EXPECT_GE(m.precision(), 0.99) << m.false_matches << " false of " << m.true_matches + m.false_matches;
+    o.extra_azimuths_deg.clear();
+    ScanTwin again(to);
+    ScanDevices d2 = again.Devices();
+    const auto without = ScanAndPick(d2, again.TrueCalibration(), o);
+    ASSERT_FALSE(without.ok()) << "without the second round the scan picked it too";
+    EXPECT_EQ(without.status().code(), StatusCode::kNotFound) << without.status().ToString();
+    // The same scan without a pick: the first round's model, reported with no grasp.
+    o.pick = false;
+    ScanTwin third(to);
+    ScanDevices d3 = third.Devices();
+    const auto model_only = ScanAndPick(d3, third.TrueCalibration(), o);
+    ASSERT_TRUE(model_only.ok()) << "a scan without a pick failed because no grasp fits: "
+                                 << model_only.status().ToString();
+    EXPECT_FALSE(model_only->grasp_found);
+    EXPECT_NE(model_only->no_grasp_reason.find("no grasp fits"), std::string::npos) << model_only->no_grasp_reason;
+    EXPECT_FALSE(model_only->second_round);
+    EXPECT_FALSE(model_only->pick.attempted);
+    EXPECT_GE(model_only->object_points.size(), 6u) << "the first round's model is there";
+    const nlohmann::json j = ScanReportJson(*model_only);
+    EXPECT_TRUE(j["grasp"].is_null());
+    EXPECT_EQ(j["no_grasp_reason"], model_only->no_grasp_reason);
+    EXPECT_TRUE(ScanReportJson(*r)["grasp"].is_object());
+    break;
+  }
+  EXPECT_TRUE(tested) << "no candidate scene needs the second round: the test no longer covers it";
 }
 
-// In this scene (seed 77, box 32) observations that the adjustment followed leave a corner 0.70 mm off.
-// With the views adjusted, the corner's observations fail the chi-square test; the two that disagree are
-// dropped and the worst corner comes back to 0.12 mm. (Scenes that show this depend on the image noise:
-// with the sensor's earlier normal generator it was scene 20.)
+// Scenes where observations that the adjustment followed leave a corner 0.45 mm or more off depend on the
+// image noise's draw: seed 77's box 32 with the sensor's generator as it is (0.66 mm; with the test
+// 0.13 mm), box 20 with it seeded otherwise (a trial: 0.46 -> 0.13 mm; with the earlier normal generator
+// it was box 20 too). The test takes the first candidate that shows it, and fails when none does. With
+// the views adjusted, that corner's observations fail the chi-square test; those that disagree are
+// dropped and the worst corner comes back under 0.3 mm.
 TEST(ScanTest, AnObservationThatDisagreesAfterTheAdjustmentIsDropped) {
   ScanTwinOptions to;
   to.seed = 77;
   to.kind = sim::ObjectKind::kBox;
-  to.scene = 32;
-  double max_error_mm[2] = {0, 0};
-  for (const bool test : {true, false}) {
-    ScanTwin twin(to);
-    ScanDevices d = twin.Devices();
-    ScanOptions o = twin.SetupOptions();
-    o.pick = false;
-    if (!test) o.structure.adjusted_outlier_z = 0;
-    auto r = ScanAndPick(d, twin.TrueCalibration(), o);
-    ASSERT_TRUE(r.ok()) << r.status().ToString();
-    EXPECT_EQ(r->structure.adjusted_observations_dropped > 0, test);
-    max_error_mm[test ? 0 : 1] = twin.Evaluate(*r, o).max_vertex_error_mm;
+  bool tested = false;
+  for (const unsigned scene : {32u, 20u}) {
+    to.scene = scene;
+    double max_error_mm[2] = {0, 0};
+    std::size_t dropped[2] = {0, 0};
+    for (const bool test : {false, true}) {
+      ScanTwin twin(to);
+      ScanDevices d = twin.Devices();
+      ScanOptions o = twin.SetupOptions();
+      o.pick = false;
+      if (!test) o.structure.adjusted_outlier_z = 0;
+      auto r = ScanAndPick(d, twin.TrueCalibration(), o);
+      ASSERT_TRUE(r.ok()) << "scene " << scene << ": " << r.status().ToString();
+      dropped[test ? 1 : 0] = static_cast<std::size_t>(r->structure.adjusted_observations_dropped);
+      max_error_mm[test ? 1 : 0] = twin.Evaluate(*r, o).max_vertex_error_mm;
+      if (!test && max_error_mm[0] <= 0.45) break;  // this scene has no disagreeing observation
+    }
+    if (max_error_mm[0] <= 0.45) continue;
+    tested = true;
+    EXPECT_EQ(dropped[0], 0u) << "scene " << scene << ": without the test nothing is dropped";
+    EXPECT_GT(dropped[1], 0u) << "scene " << scene;
+    EXPECT_LT(max_error_mm[1], 0.3) << "scene " << scene << ": with the test (without: " << max_error_mm[0] << " mm)";
+    break;
   }
-  EXPECT_LT(max_error_mm[0], 0.3) << "with the test";
-  EXPECT_GT(max_error_mm[1], 0.45) << "without the test: the scene no longer has the disagreeing observation";
+  EXPECT_TRUE(tested) << "no candidate scene has the disagreeing observation: the test no longer covers it";
 }
 
 // A cylinder has no corners: it is fitted from its silhouettes (vertical tangent planes), refined on its
