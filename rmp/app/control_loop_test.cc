@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <string>
 
 #include "rmp/app/replay_run.h"
 #include "rmp/app/sim_run.h"
@@ -171,16 +172,23 @@ TEST(ClosedLoopTest, ALowBatteryStopsTheVehicle) {
   EXPECT_LE(LastMovingSend(seen), 1.5 + 0.2);
 }
 
+// Over several noise seeds. When the tape past the gap could join the track model backwards (see
+// TrackModelTest.APieceListedFromItsFarEndJoinsTheModelTheRightWayRound), the vehicle turned round at the
+// gap's far end in 5 of seeds 1-60, seed 7 among them.
 TEST(ClosedLoopTest, BridgesATrackCoveredForOneMetre) {
-  Observed seen;
-  SimRunOptions o = SmallRun("tape_width_m: 0.05\nspeed_mps: 0.5\npoints_m: [[0, 0], [3.6, 0]]\n", &seen);
-  o.config.sim.faults.covered_m = {{1.2, 2.2}};
-  auto res = RunSimulation(o);
-  ASSERT_TRUE(res.ok()) << res.status().ToString();
-  EXPECT_TRUE(res->report.completed) << res->report.ToJson().dump();
-  EXPECT_LT(res->report.end_distance_m, 0.5);
-  EXPECT_LT(res->report.lateral_error_max_m, 0.06);
-  ExpectNeverDroveOnStaleData(seen);
+  for (uint64_t seed = 1; seed <= 8; ++seed) {
+    SCOPED_TRACE("sim.seed " + std::to_string(seed));
+    Observed seen;
+    SimRunOptions o = SmallRun("tape_width_m: 0.05\nspeed_mps: 0.5\npoints_m: [[0, 0], [3.6, 0]]\n", &seen);
+    o.config.sim.faults.covered_m = {{1.2, 2.2}};
+    o.config.sim.seed = seed;
+    auto res = RunSimulation(o);
+    ASSERT_TRUE(res.ok()) << res.status().ToString();
+    EXPECT_TRUE(res->report.completed) << res->report.ToJson().dump();
+    EXPECT_LT(res->report.end_distance_m, 0.5);
+    EXPECT_LT(res->report.lateral_error_max_m, 0.06);
+    ExpectNeverDroveOnStaleData(seen);
+  }
 }
 
 TEST(ClosedLoopTest, TurnsAnAcuteCornerOnTheSpot) {

@@ -188,5 +188,43 @@ TEST(TrackModelTest, StillCutsTrackContradictedWellInsideTheView) {
   for (const TrackSample& t : model.samples()) EXPECT_LT(t.xy.x(), 0.75);
 }
 
+// Perception lists a piece's points in either direction. Here the tape past a covered stretch is
+// missed in one view (the model's stretch there is dropped, so the model ends where the gap does), and
+// the next view lists it from its far end: it overlaps the model only at the model's last sample, whose
+// direction is that of the step into it. It must join the model the right way round: in the closed loop
+// a piece joined backwards made the model run to the tape's far end and back, and the vehicle turned
+// round at the gap's far end (5 of 60 noise seeds of ClosedLoopTest's one-metre gap).
+TEST(TrackModelTest, APieceListedFromItsFarEndJoinsTheModelTheRightWayRound) {
+  SyntheticTrack track{{{0, 0}, {5, 0}}, {{1.2, 2.2}}};
+  TrackModel model;
+  DriveStraight(&model, track, 0.0, 0.4);
+  ASSERT_GT(model.samples().back().xy.x(), 3.0) << "the model bridged the gap";
+  const Pose2 pose{0.42, 0, 0};
+  for (int i = 0; i < 20 && model.samples().back().xy.x() > 2.3; ++i) {
+    TrackObservation near = SyntheticObservation(track, pose, WideView(), static_cast<int64_t>(1e9) + i);
+    std::erase_if(near.pieces, [](const CentreLinePiece& p) { return p.points_m.front().x() > 1.0; });
+    ASSERT_EQ(near.pieces.size(), 1u);
+    ASSERT_TRUE(model.Update(near, pose).ok());
+  }
+  const double end_after_miss = model.samples().back().xy.x();
+  EXPECT_LT(end_after_miss, 2.3) << "the stretch past the gap that this view contradicts is dropped";
+  TrackObservation both = SyntheticObservation(track, pose, WideView(), static_cast<int64_t>(1.1e9));
+  ASSERT_EQ(both.pieces.size(), 2u);
+  for (CentreLinePiece& p : both.pieces) {
+    if (p.points_m.front().x() < p.points_m.back().x()) {
+      std::reverse(p.points_m.begin(), p.points_m.end());
+      std::swap(p.end_seen[0], p.end_seen[1]);
+    }
+  }
+  ASSERT_TRUE(model.Update(both, pose).ok());
+  const std::vector<TrackSample>& s = model.samples();
+  ASSERT_GE(s.size(), 2u);
+  int backwards = 0;
+  for (std::size_t i = 1; i < s.size(); ++i) backwards += s[i].xy.x() < s[i - 1].xy.x() - 0.005;
+  EXPECT_EQ(backwards, 0) << "the model steps back along the track";
+  EXPECT_GT(s.back().xy.x(), 3.0) << "the tape past the gap is joined again (the model ended at " << end_after_miss
+                                  << " m after the miss)";
+}
+
 }  // namespace
 }  // namespace idi::rmp
