@@ -112,17 +112,25 @@ TEST(ClosedLoopTest, AFrozenCameraStopsTheVehicle) {
   ExpectNeverDroveOnStaleData(seen);
 }
 
+// Each camera drops 30 % of its frames, so about half the pairs are incomplete and the vehicle often
+// stands waiting for fresh perception: over noise seeds 1-40 the 3.6 m run finished in 10.4-21.4 s. (With
+// each late pair restarting the finish hold at the end, seeds 2-4 took 26-35 s.)
 TEST(ClosedLoopTest, DroppedFramesNeverLetItDriveOnStaleData) {
-  Observed seen;
-  SimRunOptions o = SmallRun(kStraight, &seen);
-  o.config.sim.camera_rate_hz = 15;
-  o.config.sim.faults.drop_probability = 0.3;
-  o.max_time_s = 20.0;
-  auto res = RunSimulation(o);
-  ASSERT_TRUE(res.ok()) << res.status().ToString();
-  EXPECT_GT(res->report.dropped_frames, 5u);
-  EXPECT_TRUE(res->report.completed) << res->report.ToJson().dump();
-  ExpectNeverDroveOnStaleData(seen);
+  for (uint64_t seed = 1; seed <= 4; ++seed) {
+    SCOPED_TRACE("sim.seed " + std::to_string(seed));
+    Observed seen;
+    SimRunOptions o = SmallRun(kStraight, &seen);
+    o.config.sim.camera_rate_hz = 15;
+    o.config.sim.faults.drop_probability = 0.3;
+    o.config.sim.seed = seed;
+    o.max_time_s = 30.0;
+    auto res = RunSimulation(o);
+    ASSERT_TRUE(res.ok()) << res.status().ToString();
+    EXPECT_GT(res->report.dropped_frames, 5u);
+    EXPECT_TRUE(res->report.completed) << res->report.ToJson().dump();
+    EXPECT_EQ(res->report.decisions.at("at-end"), 51u) << "the finish hold (1 s of 20 ms ticks) ran once, unbroken";
+    ExpectNeverDroveOnStaleData(seen);
+  }
 }
 
 TEST(ClosedLoopTest, SilenceFromTheRmpCommandsZeroUntilItSpeaksAgain) {
@@ -195,22 +203,30 @@ TEST(ClosedLoopTest, TurnsAnAcuteCornerOnTheSpot) {
   // A 135 deg right corner: at the vertex the next leg lies behind the cameras' footprint. The vehicle
   // stops there, turns on the spot towards the leg it saw on the approach, re-acquires it and drives
   // it to the end - never on stale perception.
-  Observed seen;
-  auto res = RunSimulation(SmallRun("tape_width_m: 0.05\nspeed_mps: 0.5\npoints_m: [[0, 0], [1.8, 0], [0.5272, -1.2728]]\n", &seen));
-  ASSERT_TRUE(res.ok()) << res.status().ToString();
-  const RunReport& r = res->report;
-  EXPECT_TRUE(r.completed) << r.ToJson().dump();
-  EXPECT_LT(r.end_distance_m, 0.1);
-  EXPECT_LT(r.lateral_error_max_m, 0.06);
-  EXPECT_EQ(r.decisions.count("track-lost"), 0u) << r.ToJson().dump();
-  bool pivoted = false;
-  for (const TickRecord& t : seen.ticks) {
-    if (t.plan.state != PlanState::kCornerPivot || t.decision != Decision::kDrive) continue;
-    pivoted = true;
-    EXPECT_LT(t.speed_mps, 0.1);  // on the spot (braking the last mm at most)
+  // Seeds 23 and 31 are noise draws where fusion made a blip at the vertex while the vehicle pivoted
+  // there, and the pivot reversed (PlannerCornerPivotTest.ABlipAtTheVertexIsNotTheNextLeg).
+  for (const uint64_t seed : {1u, 23u, 31u}) {
+    SCOPED_TRACE("sim.seed " + std::to_string(seed));
+    Observed seen;
+    SimRunOptions o =
+        SmallRun("tape_width_m: 0.05\nspeed_mps: 0.5\npoints_m: [[0, 0], [1.8, 0], [0.5272, -1.2728]]\n", &seen);
+    o.config.sim.seed = seed;
+    auto res = RunSimulation(o);
+    ASSERT_TRUE(res.ok()) << res.status().ToString();
+    const RunReport& r = res->report;
+    EXPECT_TRUE(r.completed) << r.ToJson().dump();
+    EXPECT_LT(r.end_distance_m, 0.1);
+    EXPECT_LT(r.lateral_error_max_m, 0.06);
+    EXPECT_EQ(r.decisions.count("track-lost"), 0u) << r.ToJson().dump();
+    bool pivoted = false;
+    for (const TickRecord& t : seen.ticks) {
+      if (t.plan.state != PlanState::kCornerPivot || t.decision != Decision::kDrive) continue;
+      pivoted = true;
+      EXPECT_LT(t.speed_mps, 0.1);  // on the spot (braking the last mm at most)
+    }
+    EXPECT_TRUE(pivoted);
+    ExpectNeverDroveOnStaleData(seen);
   }
-  EXPECT_TRUE(pivoted);
-  ExpectNeverDroveOnStaleData(seen);
 }
 
 TEST(ClosedLoopTest, ReplayingARecordingReproducesItsCommands) {

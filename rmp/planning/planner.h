@@ -103,6 +103,9 @@ struct PlannerOptions {
   double pivot_timeout_s = 6.0;
   double pivot_extra_deg = 20.0;
   double pivot_done_deg = 4.0;
+  // A blind corner's legs run to the nearest vertices at least this far from its vertex (nearer ones are
+  // blips of the track model there, such as the tape's outer corner seen while pivoting).
+  double corner_leg_min_m = 0.1;
 
   Status Check() const;
 };

@@ -243,11 +243,17 @@ TEST(PlannerClosedLoopTest, FollowsAnSCurveAtOneMetrePerSecond) {
 // A 135 deg right corner at the origin as the track model would carry it after the approach: leg 1
 // along +x up to the vertex, leg 2 from it at -135 deg, every point seen repeatedly (support 8) by
 // observations up to `seen_ns`.
-TrackAhead AcuteCornerAhead(int64_t seen_ns) {
+// With `stub`, the model has a 4.5 cm blip beyond the vertex (forward and to the left) from which the
+// next leg starts, as fusion once made it while the vehicle pivoted there.
+TrackAhead AcuteCornerAhead(int64_t seen_ns, bool stub = false) {
   TrackAhead t;
   const Vec2d d2(std::cos(-3 * kPi / 4), std::sin(-3 * kPi / 4));
   for (double x = -1.0; x < -1e-9; x += 0.01) t.points.emplace_back(x, 0.0);
-  for (double a = 0.0; a <= 1.5 + 1e-9; a += 0.01) t.points.push_back(a * d2);
+  const Vec2d leg2_start = stub ? Vec2d(0.04, 0.02) : Vec2d(0.0, 0.0);
+  if (stub) {
+    for (double a = 0.0; a < 1.0 - 1e-9; a += 0.25) t.points.push_back(a * leg2_start);
+  }
+  for (double a = 0.0; a <= 1.5 + 1e-9; a += 0.01) t.points.push_back(leg2_start + a * d2);
   t.support.assign(t.points.size(), 8);
   t.gap.assign(t.points.size(), false);
   t.seen_ns.assign(t.points.size(), seen_ns);
@@ -308,7 +314,9 @@ struct PivotRun {
 // Drives an ideal vehicle (it does what is commanded, at once) from 0.3 m before the vertex with the
 // track of AcuteCornerAhead; `seen_at_yaw_deg`: once the vehicle has turned this far, the next leg is
 // seen again (negative: never); `stuck`: the wheels slip, the vehicle never turns.
-PivotRun RunAcuteCorner(double seen_at_yaw_deg, bool stuck, Planner* planner) {
+// `stub_at_yaw_deg`: once the vehicle has turned this far, the model has the blip of AcuteCornerAhead's
+// `stub` (negative: never).
+PivotRun RunAcuteCorner(double seen_at_yaw_deg, bool stuck, Planner* planner, double stub_at_yaw_deg = -1.0) {
   PivotRun r;
   r.pose = {-0.3, 0.0, 0.0};
   double v = 0.2, w = 0.0;
@@ -320,7 +328,7 @@ PivotRun RunAcuteCorner(double seen_at_yaw_deg, bool stuck, Planner* planner) {
     in.odom_from_vehicle = r.pose;
     in.speed_mps = v;
     in.yaw_rate_rps = w;
-    in.track = AcuteCornerAhead(seen_ns);
+    in.track = AcuteCornerAhead(seen_ns, stub_at_yaw_deg >= 0 && std::abs(r.pose.yaw) * 180 / kPi >= stub_at_yaw_deg);
     const PlanOutput out = planner->Plan(in);
     planner->CommandSent(t, out.speed_mps, out.yaw_rate_rps);
     r.states.push_back(out.state);
@@ -363,6 +371,21 @@ TEST(PlannerCornerPivotTest, StopsAtTheVertexTurnsOnTheSpotAndFollowsTheReacquir
   EXPECT_GT(r.pose.translation().dot(d2), 0.3);
   EXPECT_LT(std::abs(d2.x() * r.pose.y - d2.y() * r.pose.x), 0.03);
   EXPECT_NEAR(WrapAngle(r.pose.yaw + 3 * kPi / 4), 0.0, 0.1);
+}
+
+// Mid-pivot the model gains a 4.5 cm blip beyond the vertex from which the next leg starts: the corner's
+// legs are those beyond the blip, so the pivot goes on the same way round and ends on the next leg. (With
+// the blip taken as the next leg, the corner became a 27 deg left bend, the pivot reversed and the
+// manoeuvre failed "turned beyond the corner's angle".)
+TEST(PlannerCornerPivotTest, ABlipAtTheVertexIsNotTheNextLeg) {
+  Planner planner;
+  const PivotRun r = RunAcuteCorner(60.0, false, &planner, 30.0);
+  EXPECT_TRUE(Visited(r, PlanState::kCornerPivot));
+  EXPECT_FALSE(Visited(r, PlanState::kNoTrack)) << planner.corner_turn_failure();
+  EXPECT_TRUE(planner.corner_turn_failure().empty()) << planner.corner_turn_failure();
+  EXPECT_EQ(r.states.back(), PlanState::kFollow);
+  EXPECT_NEAR(WrapAngle(r.pose.yaw + 3 * kPi / 4), 0.0, 0.1);
+  EXPECT_LT(r.turned_rad, 3 * kPi / 4 + DegToRad(PlannerOptions{}.pivot_extra_deg)) << "it never turned back";
 }
 
 TEST(PlannerCornerPivotTest, StopsWhenFacingTheRememberedLegWithoutSeeingIt) {
