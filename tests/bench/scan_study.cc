@@ -286,6 +286,7 @@ int Main(int argc, char** argv) {
                   {"collisions", t.collisions},
                   {"grasp", t.grasp_reason},
                   {"outcome", r->pick.outcome},
+                  {"grasp_rank", r->pick.grasp_rank},
                   {"structure_ms", r->structure.total_ms},
                   {"cylinder_axis_error_mm", t.cylinder_axis_error_mm},
                   {"cylinder_radius_error_mm", t.cylinder_radius_error_mm},

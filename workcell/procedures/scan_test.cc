@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "shared/util/units.h"
@@ -142,26 +143,38 @@ TEST(ScanTest, CorrespondenceOfBracketScenesIsPrecise) {
   EXPECT_LT(point_error[point_error.size() / 2], 0.1) << "median error of the labelled IDI points, px";
 }
 
-// In this scene (seed 1, prism 26) robot 2 reaches none of the poses of the best grasp from any rail
-// position (its IK is 171 mm off); with only that grasp the scan failed. It must take the best one it
-// can reach and pick the prism.
+// Scenes where robot 2 reaches none of the poses of the best grasp from any rail position (in seed 1's
+// prism 26 its IK is 171 mm off) depend on the image noise's draw, through the model the grasps are
+// planned on: over scan_study --oracle --object prism --scenes 45, seed 1's prism 26, seed 3's 0 and 16,
+// seed 77's 7 and 44 (with the sensor seeded otherwise, a trial: seed 3's 0, 16, 33, seed 77's 7, 30, 44).
+// The test takes the first candidate where robot 2 took a lower-ranked grasp, and fails when none does.
+// There it must pick the prism; with only the best grasp the scan fails.
 TEST(ScanTest, RobotTwoTakesTheBestGraspItCanReach) {
-  ScanTwinOptions to;
-  to.seed = 1;
-  to.kind = sim::ObjectKind::kTriangularPrism;
-  to.scene = 26;
-  ScanTwin twin(to);
-  ScanDevices d = twin.Devices();
-  ScanOptions o = twin.SetupOptions();
-  auto r = ScanAndPick(d, twin.TrueCalibration(), o);
-  ASSERT_TRUE(r.ok()) << r.status().ToString();
-  EXPECT_GT(r->pick.grasp_rank, 0) << "the best grasp was reachable after all: this scene no longer tests the fallback";
-  const ScanTruth t = twin.Evaluate(*r, o);
-  EXPECT_TRUE(t.held && t.placed) << t.grasp_reason << "; " << r->pick.outcome;
-  o.grasp_alternatives = 1;
-  ScanTwin again(to);
-  ScanDevices d2 = again.Devices();
-  EXPECT_FALSE(ScanAndPick(d2, again.TrueCalibration(), o).ok()) << "with the best grasp alone robot 2 cannot pick it";
+  bool tested = false;
+  for (const auto& [seed, scene] : {std::pair<unsigned, unsigned>{1, 26}, {3, 0}, {77, 7}, {3, 16}, {77, 44}}) {
+    ScanTwinOptions to;
+    to.seed = seed;
+    to.kind = sim::ObjectKind::kTriangularPrism;
+    to.scene = scene;
+    ScanTwin twin(to);
+    ScanDevices d = twin.Devices();
+    ScanOptions o = twin.SetupOptions();
+    auto r = ScanAndPick(d, twin.TrueCalibration(), o);
+    ASSERT_TRUE(r.ok()) << "seed " << seed << ", prism " << scene << ": " << r.status().ToString();
+    if (r->pick.grasp_rank == 0) continue;
+    tested = true;
+    SCOPED_TRACE("seed " + std::to_string(seed) + ", prism " + std::to_string(scene));
+    const ScanTruth t = twin.Evaluate(*r, o);
+    EXPECT_TRUE(t.held && t.placed) << t.grasp_reason << "; " << r->pick.outcome;
+    o.grasp_alternatives = 1;
+    ScanTwin again(to);
+    ScanDevices d2 = again.Devices();
+    EXPECT_FALSE(ScanAndPick(d2, again.TrueCalibration(), o).ok())
+        << "with the best grasp alone robot 2 cannot pick it";
+    break;
+  }
+  EXPECT_TRUE(tested)
+      << "robot 2 reached the best grasp in every candidate scene: the test no longer covers the fallback";
 }
 
 // Scenes where the four stations' model lacks a face the grasp needs (the planner finds no grasp on it;
