@@ -770,7 +770,8 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
       report.no_grasp_reason = std::string(plans.status().message());
       return report;
     }
-    return fail(plans.status(), "grasp planning");
+    return fail(plans.status(),
+                report.second_round ? "with the second round's views too" : "with the first round's views");
   }
   // 4. The pick: the grasp in robot 2's base (eq. 3.4).
   report.grasp_found = true;

@@ -177,12 +177,12 @@ TEST(ScanTest, RobotTwoTakesTheBestGraspItCanReach) {
       << "robot 2 reached the best grasp in every candidate scene: the test no longer covers the fallback";
 }
 
-// Scenes where the four stations' model lacks a face the grasp needs (the planner finds no grasp on it;
-// on the true bracket it finds 8) depend on the image noise's draw: with the sensor's generator as it is,
-// seed 77's brackets 5, 9 and 33; with it seeded otherwise (a trial), 21, 32 and 33. The test takes the
-// first of these candidates that needs the second round, and fails when none does. There the scan must take
-// the second round of stations, rebuild the model from all 14 views and pick the bracket. Without the
-// second round the pick fails; a scan without a pick still returns the model, with no grasp.
+// Scenes where the four stations' model lacks a face the grasp needs (the planner finds no grasp on it; on the true
+// bracket it finds 8) depend on the image noise's draw: with the sensor's generator as it is, seed 77's brackets 5,
+// 9 and 33; with it seeded otherwise (trials), 21, 32 and 33, or 21 and 29 (there 33 took the second round and still
+// fitted no grasp). The test takes the first of these candidates that needs the second round, and fails when none
+// does. There the scan must take the second round of stations, rebuild the model from all 14 views and pick the
+// bracket. Without the second round the pick fails; a scan without a pick still returns the model, with no grasp.
 TEST(ScanTest, SecondRoundOfStationsWhenNoGraspFitsTheModel) {
   ScanTwinOptions to;
   to.seed = 77;
@@ -195,7 +195,13 @@ TEST(ScanTest, SecondRoundOfStationsWhenNoGraspFitsTheModel) {
     ScanDevices d = twin.Devices();
     ScanOptions o = twin.SetupOptions();
     auto r = ScanAndPick(d, twin.TrueCalibration(), o);
-    ASSERT_TRUE(r.ok()) << "scene " << scene << ": " << r.status().ToString();
+    if (!r.ok()) {
+      // The second round does not always give the faces a grasp needs (with the sensor reseeded, a
+      // trial: bracket 33); the scan then fails naming it, and the next candidate is tried.
+      EXPECT_EQ(r.status().code(), StatusCode::kNotFound) << r.status().ToString();
+      EXPECT_NE(r.status().message().find("second round"), std::string::npos) << r.status().ToString();
+      continue;
+    }
     if (!r->second_round) continue;
     tested = true;
     SCOPED_TRACE("scene " + std::to_string(scene));
