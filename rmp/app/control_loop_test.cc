@@ -184,9 +184,12 @@ TEST(ClosedLoopTest, ALowBatteryStopsTheVehicle) {
 
 // Over several noise seeds. When the tape past the gap could join the track model backwards (see
 // TrackModelTest.APieceListedFromItsFarEndJoinsTheModelTheRightWayRound), the vehicle turned round at the
-// gap's far end in 5 of seeds 1-60, seed 7 among them.
+// gap's far end in 5 of seeds 1-60, seed 7 among them. In seed 104 a wrong stereo match in the first
+// frame pulled the ground plane to a 9 deg pitch, which then held (GroundPlaneTest.AWrongLineMatch-
+// ListedFirstDoesNotCaptureThePlane): the tape past the gap was never seen and the vehicle stood
+// "track-lost" before the gap.
 TEST(ClosedLoopTest, BridgesATrackCoveredForOneMetre) {
-  for (uint64_t seed = 1; seed <= 8; ++seed) {
+  for (const uint64_t seed : {1u, 2u, 3u, 4u, 5u, 6u, 7u, 8u, 104u}) {
     SCOPED_TRACE("sim.seed " + std::to_string(seed));
     Observed seen;
     SimRunOptions o = SmallRun("tape_width_m: 0.05\nspeed_mps: 0.5\npoints_m: [[0, 0], [3.6, 0]]\n", &seen);

@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <vector>
 
 namespace idi::rmp {
 
@@ -36,14 +37,66 @@ GroundPlaneUpdate GroundPlaneEstimator::Update(const std::vector<GroundSample>& 
                                  options_.walk_roll * options_.walk_roll)
                      .asDiagonal();
   for (int k = 0; k < 3; ++k) covariance_(k, k) = std::min(covariance_(k, k), prior_var[k]);
-  // Update with each sample (sequential scalar Kalman updates), gating outliers on the innovation.
-  for (const GroundSample& s : samples) {
-    if (!s.xyz.allFinite() || !std::isfinite(s.range_m)) {
+  // Which samples are ground: the largest set that one plane explains. A frame's samples come from
+  // a few triangulated lines, and a wrong stereo match puts all of its line's samples off the ground
+  // together. Updated one at a time, the first sample of such a line could pull the plane (still
+  // uncertain) to itself, and then the frame's true ground samples failed the gate - and the next
+  // frames' too, since the plane also decides which line matches are kept (seen in the closed loop:
+  // a 9 deg pitch from the first frame on, and tape beyond 1.4 m never seen). So the candidate planes
+  // are the predicted one and, for each sample the prediction admits, the prediction updated with that
+  // sample alone; the candidate that the most samples lie on (gate_m + 3 sigma of the point) picks the
+  // samples that update the filter.
+  auto point_sigma = [&](const GroundSample& s) {
+    return options_.point_sigma_m + options_.point_sigma_per_range2 * s.range_m * s.range_m;
+  };
+  std::vector<std::size_t> valid;
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    if (samples[i].xyz.allFinite() && std::isfinite(samples[i].range_m)) {
+      valid.push_back(i);
+    } else {
+      ++out.rejected;
+    }
+  }
+  auto row = [&](const GroundSample& s) { return Eigen::Vector3d(1.0, s.xyz.x(), s.xyz.y()); };
+  std::vector<Eigen::Vector3d> candidates = {theta_};
+  for (const std::size_t i : valid) {
+    const GroundSample& s = samples[i];
+    const Eigen::Vector3d h = row(s);
+    const double r = point_sigma(s) * point_sigma(s);
+    const double innovation = s.xyz.z() - h.dot(theta_);
+    const double var = h.dot(covariance_ * h) + r;
+    if (std::abs(innovation) <= options_.gate_m + 3.0 * std::sqrt(var))
+      candidates.push_back(theta_ + covariance_ * h / var * innovation);
+  }
+  std::vector<char> inlier(samples.size(), 0), best(samples.size(), 0);
+  int best_count = -1;
+  double best_cost = 0.0;
+  for (const Eigen::Vector3d& plane : candidates) {
+    int count = 0;
+    double cost = 0.0;
+    for (const std::size_t i : valid) {
+      const double d = std::abs(samples[i].xyz.z() - row(samples[i]).dot(plane));
+      inlier[i] = d <= options_.gate_m + 3.0 * point_sigma(samples[i]);
+      if (inlier[i]) {
+        ++count;
+        cost += d;
+      }
+    }
+    if (count > best_count || (count == best_count && cost < best_cost)) {
+      best_count = count;
+      best_cost = cost;
+      best = inlier;
+    }
+  }
+  // Update with those samples (sequential scalar Kalman updates), still gating on the innovation.
+  for (const std::size_t i : valid) {
+    const GroundSample& s = samples[i];
+    if (!best[i]) {
       ++out.rejected;
       continue;
     }
-    const Eigen::Vector3d h(1.0, s.xyz.x(), s.xyz.y());
-    const double sigma = options_.point_sigma_m + options_.point_sigma_per_range2 * s.range_m * s.range_m;
+    const Eigen::Vector3d h = row(s);
+    const double sigma = point_sigma(s);
     const double r = sigma * sigma;
     const double innovation = s.xyz.z() - h.dot(theta_);
     const double var = h.dot(covariance_ * h) + r;

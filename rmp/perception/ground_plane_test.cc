@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 namespace idi::rmp {
@@ -33,6 +34,28 @@ TEST(GroundPlaneTest, StartsAtTheCalibrationAndFollowsTheData) {
   ASSERT_TRUE(est.IntersectRay(Vec3d(0, 0, 1.2), Vec3d(1, 0, -1).normalized(), &hit));
   EXPECT_NEAR(est.HeightAbove(hit), 0.0, 1e-9);
   EXPECT_FALSE(est.IntersectRay(Vec3d(0, 0, 1.2), Vec3d(1, 0, 0.1).normalized(), &hit));
+}
+
+TEST(GroundPlaneTest, AWrongLineMatchListedFirstDoesNotCaptureThePlane) {
+  // The first frame, as the closed loop saw it with sim.seed 104: a wrong stereo match put one line's
+  // samples 0.25 m below the ground, and they came first. Updated one sample at a time, the first of
+  // them pulled the still-uncertain plane to a 9 deg pitch and the true ground failed the gate.
+  GroundPlaneEstimator est;
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, 0.002);
+  for (int frame = 0; frame < 5; ++frame) {
+    std::vector<GroundSample> samples = {
+        {Vec3d(1.446, 0.0, -0.246), 1.45}, {Vec3d(1.416, 0.0, -0.246), 1.42}, {Vec3d(0.716, 0.0, -0.245), 0.75}};
+    for (double x : {0.01, 0.59, 1.16, 1.2}) {
+      for (double y : {-0.025, 0.025}) samples.push_back({Vec3d(x, y, noise(rng)), std::hypot(x, 0.3)});
+    }
+    const GroundPlaneUpdate u = est.Update(samples);
+    EXPECT_EQ(u.used, 8) << "frame " << frame;
+    EXPECT_EQ(u.rejected, 3) << "frame " << frame;
+  }
+  EXPECT_NEAR(est.plane()[0], 0.0, 0.003);
+  EXPECT_NEAR(est.plane()[1], 0.0, 0.003);
+  EXPECT_NEAR(est.plane()[2], 0.0, 0.01);
 }
 
 TEST(GroundPlaneTest, ReturnsToTheCalibrationWithoutData) {
