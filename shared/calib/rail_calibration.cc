@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <vector>
 
 #include "shared/optim/vicki_costs.h"
 
@@ -266,11 +267,81 @@ Result<RailCalibrationResult> CalibrateRail(const std::vector<RailReading>& read
   }
   out.rms_distance_mm = std::sqrt(s2 / std::max(1, out.readings_used));
   out.rms_normalized = std::sqrt(n2 / std::max(1, out.readings_used));
+  Eigen::Matrix4d cov = out.identifiability.covariance;  // scaled by sigma0^2
+  for (int k = 0; k < kRobotToRobotParamCount; ++k)
+    out.std_given_arms[static_cast<std::size_t>(k)] = out.identifiability.stddev(k);
+  if (arm1.covariance.rows() == kArmModelParamCount && arm2.covariance.rows() == kArmModelParamCount &&
+      out.identifiability.rank == kRobotToRobotParamCount) {
+    // psi minimises |r(psi, arms)|^2, so dpsi/darms = -(Jp^T Jp)^-1 Jp^T Ja (whitened residuals), and the
+    // arms' covariance adds A Ca A^T. Ja by central differences of the residuals at the solution.
+    const Eigen::MatrixXd& jp = ev.jacobian;
+    Eigen::MatrixXd ja(jp.rows(), 2 * kArmModelParamCount);
+    for (int a = 0; a < 2; ++a) {
+      const ArmModel& base = a == 0 ? arm1 : arm2;
+      for (int j = 0; j < kArmModelParamCount; ++j) {
+        const double h = std::max(1e-9, 1e-2 * std::sqrt(std::max(0.0, base.covariance(j, j))));
+        Eigen::VectorXd r[2];
+        for (int side = 0; side < 2; ++side) {
+          ArmModel m = base;
+          const double step = side == 0 ? h : -h;
+          const auto u = static_cast<std::size_t>(j);
+          if (j < kRx130ParamCount) {
+            m.robot.set_value(u, m.robot.value(u) + step);
+          } else if (j < kRx130ParamCount + kLaserParamCount) {
+            m.laser.set_value(u - kRx130ParamCount, m.laser.value(u - kRx130ParamCount) + step);
+          } else {
+            const std::size_t v = u - kRx130ParamCount - kLaserParamCount;
+            m.rail.set_value(v, m.rail.value(v) + step);
+          }
+          std::array<double, 4> p = psi;
+          RailBuilt bj;
+          BuildRail(p, readings, a == 0 ? m : arm1, a == 0 ? arm2 : m, sigma, active, {}, &bj);
+          IDI_ASSIGN_OR_RETURN(const optim::DenseEvaluation e, optim::EvaluateDense(bj.problem));
+          r[side] = e.residuals;
+        }
+        if (r[0].size() != jp.rows() || r[1].size() != jp.rows())
+          return Internal("rail calibration: residual count changed");
+        ja.col(a * kArmModelParamCount + j) = (r[0] - r[1]) / (2.0 * h);
+      }
+    }
+    const Eigen::Matrix4d jtj = jp.transpose() * jp;
+    const Eigen::MatrixXd sens = jtj.ldlt().solve(jp.transpose() * ja);
+    Eigen::MatrixXd ca = Eigen::MatrixXd::Zero(2 * kArmModelParamCount, 2 * kArmModelParamCount);
+    ca.topLeftCorner(kArmModelParamCount, kArmModelParamCount) = arm1.covariance;
+    ca.bottomRightCorner(kArmModelParamCount, kArmModelParamCount) = arm2.covariance;
+    const Eigen::Matrix4d added = sens * ca * sens.transpose();
+    if (added.allFinite()) {
+      // The readings' own noise a priori (sigma0^2 > 1 here is mostly the arms' errors, now counted).
+      cov = Eigen::Matrix4d(jtj.inverse()) + added;
+      out.arms_uncertainty_included = true;
+    }
+  }
   for (int k = 0; k < kRobotToRobotParamCount; ++k) {
     out.psi.set_value(static_cast<std::size_t>(k), psi[static_cast<std::size_t>(k)]);
-    out.psi.set_stddev(static_cast<std::size_t>(k), out.identifiability.stddev(k));
+    out.psi.set_stddev(static_cast<std::size_t>(k), std::sqrt(std::max(0.0, cov(k, k))));
   }
   return out;
+}
+
+Eigen::MatrixXd ArmCovarianceFromUnknowns(const Eigen::MatrixXd& unknowns) {
+  constexpr int kPoint = kRx130ParamCount + kLaserParamCount;  // the fixed point's 3 follow robot and laser
+  constexpr int n = kArmModelParamCount + 3;
+  if (unknowns.rows() != n || unknowns.cols() != n || !unknowns.allFinite()) return {};
+  auto index = [](int i) { return static_cast<Eigen::Index>(i < kPoint ? i : i + 3); };
+  Eigen::MatrixXd c(kArmModelParamCount, kArmModelParamCount);
+  for (int i = 0; i < kArmModelParamCount; ++i) {
+    for (int j = 0; j < kArmModelParamCount; ++j) c(i, j) = unknowns(index(i), index(j));
+  }
+  return c;
+}
+
+ArmModel ArmFromRobotCalibration(const RobotCalibrationResult& r) {
+  ArmModel m;
+  m.robot = r.robot;
+  m.laser = r.laser;
+  m.rail = r.rail;
+  m.covariance = ArmCovarianceFromUnknowns(r.covariance);
+  return m;
 }
 
 std::string RailCalibrationResult::Summary() const {
@@ -279,6 +350,10 @@ std::string RailCalibrationResult::Summary() const {
     << summary.iterations << " LM iterations (" << summary.termination << "); RMS line distance " << rms_distance_mm
     << " mm (normalised " << rms_normalized << "), sigma0^2 " << variance_factor << "; condition number "
     << identifiability.condition_number;
+  if (arms_uncertainty_included) {
+    s << "; std with the arms' own uncertainty: psi_x " << psi.stddev(0) << " mm (" << std_given_arms[0]
+      << " mm with the arms taken as exact)";
+  }
   return s.str();
 }
 

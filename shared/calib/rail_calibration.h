@@ -43,7 +43,17 @@ struct ArmModel {
   ParamSet robot = Rx130Nominal();
   ParamSet laser = LaserNominal();
   ParamSet rail = ParamSet(RailParamSpecs());  // phi_l, phi_m
+  // Covariance of the 24 values above (robot, laser, rail; code units) from the arm's calibration.
+  // Empty: the arm is taken as exact.
+  Eigen::MatrixXd covariance;
 };
+inline constexpr int kArmModelParamCount = kRx130ParamCount + kLaserParamCount + kRailParamCount;
+
+// The arm model's covariance from that of chapter 4's 27 unknowns (RobotCalibrationSpecs order): the
+// fixed point left out. Empty unless `unknowns` is a finite 27 x 27 matrix.
+Eigen::MatrixXd ArmCovarianceFromUnknowns(const Eigen::MatrixXd& unknowns);
+// The arm's model from its chapter 4 calibration, with its covariance.
+ArmModel ArmFromRobotCalibration(const RobotCalibrationResult& r);
 
 struct RailNoiseModel {
   double spot_sigma_mm = 0.05;   // each spot on the wall, per in-plane axis
@@ -79,6 +89,12 @@ struct RailCalibrationResult {
   double rms_normalized = 0;    // chapter 5's cost: distance / mean length
   double variance_factor = 0;
   optim::CovarianceReport identifiability;
+  // psi's std with the arms taken as exact (the rail readings' noise alone). psi.stddev adds the arms'
+  // own uncertainty when both arms carry a covariance: their link lengths rest on the rail's
+  // repeatability (chapter 4's only scale), and a few hundredths of a millimetre there move psi_x by
+  // more than the rail readings can tell.
+  std::array<double, kRobotToRobotParamCount> std_given_arms{};
+  bool arms_uncertainty_included = false;
   std::string Summary() const;
 };
 

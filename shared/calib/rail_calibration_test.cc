@@ -66,6 +66,39 @@ TEST(RailCalibrationTest, ExactDataRecoversPsiFromAClosedFormStart) {
   EXPECT_GT(nominal->mean_mm, 1.0);
 }
 
+// An arm's own uncertainty carried into psi's: with only arm 1's a3 uncertain (0.1 mm), each psi
+// parameter's variance is the readings' own (a priori) plus (dpsi/da3 * 0.1 mm)^2, where dpsi/da3 is
+// how far psi moves when the same readings are solved with a3 off by 0.05 mm.
+TEST(RailCalibrationTest, TheArmsCovarianceIsCarriedIntoPsisStd) {
+  ArmModel a1 = PerturbedArm(21);
+  const ArmModel a2 = PerturbedArm(22);
+  const auto data = ExactRailData(a1, a2, kTwoWalls, 60, 5);
+  const std::size_t a3 = *a1.robot.Find("a3");
+  const double sigma = 0.1, delta = 0.05;
+  a1.covariance = Eigen::MatrixXd::Zero(kArmModelParamCount, kArmModelParamCount);
+  ArmModel a2_cov = a2;
+  a2_cov.covariance = Eigen::MatrixXd::Zero(kArmModelParamCount, kArmModelParamCount);
+  a1.covariance(static_cast<Eigen::Index>(a3), static_cast<Eigen::Index>(a3)) = sigma * sigma;
+  const auto r = CalibrateRail(data, a1, a2_cov, {});
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_TRUE(r->arms_uncertainty_included);
+  ArmModel shifted = a1;
+  shifted.robot.set_value(a3, a1.robot.value(a3) + delta);
+  const auto moved = CalibrateRail(data, shifted, a2, {});
+  ASSERT_TRUE(moved.ok());
+  EXPECT_FALSE(moved->arms_uncertainty_included);
+  const auto prior = RailCovarianceAt(data, a1, a2, kTruePsi, {});
+  ASSERT_TRUE(prior.ok());
+  for (std::size_t k = 0; k < 4; ++k) {
+    const double slope = (moved->psi.value(k) - r->psi.value(k)) / delta;
+    const double expected =
+        (*prior)(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(k)) + slope * sigma * slope * sigma;
+    EXPECT_NEAR(r->psi.stddev(k) * r->psi.stddev(k), expected, 0.03 * expected) << k;
+  }
+  // psi_x moves with a3 about one for one: the arm's length error is the far arm's offset along the rail.
+  EXPECT_GT(r->psi.stddev(kPsiX), 0.5 * sigma);
+}
+
 TEST(RailCalibrationTest, PointsOnOneWallConfoundPsiZAndPsiAlpha) {
   const ArmModel a1 = PerturbedArm(23), a2 = PerturbedArm(24);
   RailNoiseModel noise;

@@ -321,11 +321,7 @@ Result<calib::ArmModel> ArmForRtu(const std::string& file, bool sim, sim::Workce
     IDI_RETURN_IF_ERROR(WriteRobotCalibration(file, r, acq.data));
     spdlog::info("wrote {}", file);
   }
-  calib::ArmModel m;
-  m.robot = r.robot;
-  m.laser = r.laser;
-  m.rail = r.rail;
-  return m;
+  return calib::ArmFromRobotCalibration(r);
 }
 
 }  // namespace
@@ -384,6 +380,18 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
   report["variance_factor"] = r.variance_factor;
   report["condition_number"] = r.identifiability.condition_number;
   report["params"] = ParamsJson(r.psi);
+  report["arms_uncertainty_included"] = r.arms_uncertainty_included;
+  {
+    nlohmann::json given = nlohmann::json::object();
+    for (std::size_t k = 0; k < 4; ++k)
+      given[r.psi.spec(k).Key()] = ToFileUnits(r.psi.spec(k).unit, r.std_given_arms[k]);
+    report["std_given_arms"] = given;
+  }
+  if (!r.arms_uncertainty_included) {
+    spdlog::warn(
+        "rail calibration: the robot files carry no covariance (older files): psi's std takes the arms as exact and "
+        "understates psi_x's uncertainty; recalibrate the arms to get it");
+  }
   if (!acquisition.is_null()) report["acquisition"] = acquisition;
   std::vector<std::pair<std::string, calib::SpreadStats>> spreads;
   if (!held_out.empty()) {

@@ -155,6 +155,22 @@ Status WriteRobotCalibration(const std::string& path, const calib::RobotCalibrat
   e << YAML::Key << "method" << YAML::Value << calib::MethodName(data.method);
   e << YAML::Key << "distance_mm" << YAML::Value << data.distance_mm;
   EmitParamSet(e, r.params);
+  // The unknowns' correlation (in the order above), so the rail calibration can carry the arm's own
+  // uncertainty into psi's (calib::CalibrateRail).
+  const auto n = static_cast<Eigen::Index>(r.params.size());
+  if (r.covariance.rows() == n && r.covariance.cols() == n && r.covariance.allFinite()) {
+    const Eigen::VectorXd sd = r.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+    e << YAML::Key << "correlation" << YAML::Value << YAML::BeginSeq;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      e << YAML::Flow << YAML::BeginSeq;
+      for (Eigen::Index j = 0; j < n; ++j) {
+        const double rho = sd(i) > 0 && sd(j) > 0 ? r.covariance(i, j) / (sd(i) * sd(j)) : (i == j ? 1.0 : 0.0);
+        e << std::round(rho * 1e9) / 1e9;
+      }
+      e << YAML::EndSeq;
+    }
+    e << YAML::EndSeq;
+  }
   EmitStats(e, {{"readings", static_cast<double>(data.readings.size())},
                 {"readings_used", static_cast<double>(r.residuals.readings)},
                 {"outliers", static_cast<double>(r.outliers.size())},
@@ -173,12 +189,56 @@ Status WriteRobotCalibration(const std::string& path, const calib::RobotCalibrat
 
 Result<calib::ArmModel> LoadRobotCalibration(const std::string& path) {
   ParamFileOptions o;
-  o.extra_keys = {"model", "comment", "method", "distance_mm", "statistics"};
+  o.extra_keys = {"model", "comment", "method", "distance_mm", "statistics", "correlation"};
   IDI_ASSIGN_OR_RETURN(const ParamSet p, LoadParamFile(path, calib::RobotCalibrationSpecs(), o));
   calib::ArmModel m;
   m.robot = p.Slice(0, kRx130ParamCount);
   m.laser = p.Slice(kRx130ParamCount, kLaserParamCount);
   m.rail = p.Slice(kRx130ParamCount + kLaserParamCount + 3, kRailParamCount);
+  // Optional (files written before it was added have none): the unknowns' correlation, which with
+  // their std gives the arm model's covariance.
+  IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(path));
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& ex) {
+    return InvalidArgument(path + ": " + ex.what());
+  }
+  const YAML::Node corr = root["correlation"];
+  if (!corr) return m;
+  const std::size_t n = p.size();
+  auto bad = [&](const std::string& what) { return InvalidArgument(path + ": correlation: " + what); };
+  if (!corr.IsSequence() || corr.size() != n)
+    return bad("must be " + std::to_string(n) + " rows of " + std::to_string(n) + " numbers");
+  Eigen::MatrixXd rho(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!corr[i].IsSequence() || corr[i].size() != n)
+      return bad("row " + std::to_string(i + 1) + " must have " + std::to_string(n) + " numbers");
+    for (std::size_t j = 0; j < n; ++j) {
+      double v = 0;
+      try {
+        v = corr[i][j].as<double>();
+      } catch (const YAML::Exception&) {
+        return bad("row " + std::to_string(i + 1) + ", column " + std::to_string(j + 1) + " is not a number");
+      }
+      if (!std::isfinite(v) || std::abs(v) > 1.0 + 1e-6 || (i == j && std::abs(v - 1.0) > 1e-6)) {
+        return bad("row " + std::to_string(i + 1) + ", column " + std::to_string(j + 1) + ": " + std::to_string(v) +
+                   " is not a correlation (within [-1, 1], 1 on the diagonal)");
+      }
+      rho(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = v;
+    }
+  }
+  if (!rho.isApprox(rho.transpose(), 1e-6)) return bad("is not symmetric");
+  Eigen::MatrixXd cov(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!(std::isfinite(p.stddev(i)) && p.stddev(i) >= 0))
+      return bad("needs every parameter's std (" + p.spec(i).Key() + " has none)");
+    for (std::size_t j = 0; j < n; ++j) {
+      cov(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) =
+          rho(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) * p.stddev(i) * p.stddev(j);
+    }
+  }
+  m.covariance = calib::ArmCovarianceFromUnknowns(cov);
   return m;
 }
 

@@ -77,8 +77,8 @@ ScanOptions ScanTwin::SetupOptions() const {
 ScanCalibration ScanTwin::TrueCalibration() const {
   const sim::WorkcellTwin& w = cell_->workcell();
   ScanCalibration c;
-  c.robot1 = {w.true_robot(0), w.true_laser(0), w.true_rail(0)};
-  c.robot2 = {w.true_robot(1), w.true_laser(1), w.true_rail(1)};
+  c.robot1 = {w.true_robot(0), w.true_laser(0), w.true_rail(0), {}};
+  c.robot2 = {w.true_robot(1), w.true_laser(1), w.true_rail(1), {}};
   c.psi = w.true_psi();
   c.cameras = head_;
   c.flange_from_palm = cell_->options().hand.flange_from_palm;
