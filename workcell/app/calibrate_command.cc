@@ -7,6 +7,7 @@
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <tuple>
 
 #include "shared/calib/evaluation.h"
 #include "shared/plot/plot.h"
@@ -361,6 +362,16 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
     if (o.observations.empty()) return InvalidArgument("calibrate rtu: --observations FILE.csv is required (or --sim)");
     IDI_ASSIGN_OR_RETURN(readings, ReadRailObservations(o.observations));
   }
+  for (const auto& [k, arm, file] : {std::tuple{1, &arm1, &o.robot1}, std::tuple{2, &arm2, &o.robot2}}) {
+    if (arm->covariance.size() > 0) continue;
+    spdlog::warn(
+        "rail calibration: robot {}'s calibration {} has no correlation matrix (written by an older version): "
+        "psi's std takes both arms as exact and understates psi_x's uncertainty; recalibrate robot {} to "
+        "include it",
+        k,
+        *file,
+        k);
+  }
   calib::RailCalibrationOptions co;
   co.noise.spot_sigma_mm = o.spot_sigma_mm;
   co.noise.rail_sigma_mm = o.rail_sigma_mm;
@@ -386,11 +397,6 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
     for (std::size_t k = 0; k < 4; ++k)
       given[r.psi.spec(k).Key()] = ToFileUnits(r.psi.spec(k).unit, r.std_given_arms[k]);
     report["std_given_arms"] = given;
-  }
-  if (!r.arms_uncertainty_included) {
-    spdlog::warn(
-        "rail calibration: the robot files carry no covariance (older files): psi's std takes the arms as exact and "
-        "understates psi_x's uncertainty; recalibrate the arms to get it");
   }
   if (!acquisition.is_null()) report["acquisition"] = acquisition;
   std::vector<std::pair<std::string, calib::SpreadStats>> spreads;
