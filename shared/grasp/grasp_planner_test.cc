@@ -57,6 +57,38 @@ TEST(GraspPlannerTest, PostAsWideAsTheFingerSpacingIsGrippedAcrossItsThickness) 
   EXPECT_LT(plan->centroid_offset_mm, 1.0);
 }
 
+// A bracket as the simulated day reconstructed it (seed 1, scene 2, the day's calibration; table top at
+// z = 0): 9 of its 12 corners - the leg's far inner top corner, the far end of the leg's foot joint and
+// one foot corner were not found - and the 10 edges between them. The leg is 64.6 mm wide, 12.6 mm
+// thick and 76.6 mm tall. Its inner face is seen only at its near end, so the section through the leg is
+// a thin triangle; the grasp is across the leg's thickness, thumb on its outer face. An eleventh edge,
+// from the leg's top inner corner to the foot's far corner, joined two points that a hidden corner's
+// image happened to align in two views (see ModelOptions::min_edge_spread_deg); with it, the leg's
+// section becomes a ramp 45 deg off vertical and no grasp fits.
+TEST(GraspPlannerTest, ReconstructedBracketMissingThreeCornersIsGrippedAcrossItsLeg) {
+  const std::vector<Vec3d> points = {{-7.48, -26.61, 76.51},
+                                     {22.78, 56.37, -0.01},
+                                     {-7.60, -26.66, -0.02},
+                                     {-3.20, -14.70, 12.46},
+                                     {53.25, -48.61, -0.01},
+                                     {-3.20, -14.76, 76.82},
+                                     {53.27, -48.57, 76.57},
+                                     {83.35, 34.38, 12.45},
+                                     {22.51, 56.38, 12.44}};
+  std::vector<std::pair<int, int>> edges = {{0, 2}, {0, 5}, {0, 6}, {1, 2}, {2, 4}, {3, 5}, {3, 8}, {4, 6}, {7, 8}};
+  const auto plan = PlanTopGrasp(points, 0.0, {}, edges);
+  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+  EXPECT_NEAR(plan->width_mm, 12.6, 0.5) << "across the leg's thickness";
+  const Vec2d outer_face = (points[6] - points[0]).head<2>().normalized();
+  EXPECT_LT(std::abs(plan->world_from_grasp.rotation.col(0).head<2>().dot(outer_face)), 0.02)
+      << "the grip axis is square to the leg's faces";
+  EXPECT_GT(plan->thumb_contact.z(), 12.5) << "on the leg, above the foot";
+  EXPECT_GT(plan->friction_margin_rad, DegToRad(5.0));
+
+  edges.emplace_back(5, 7);  // the accidental edge
+  EXPECT_EQ(PlanTopGrasp(points, 0.0, {}, edges).status().code(), StatusCode::kNotFound);
+}
+
 TEST(GraspPlannerTest, TooWideObjectIsRefused) {
   const auto plan = PlanTopGrasp(BoxPoints(Vec3d(0, 0, 0), Vec3d(300, 260, 50), 0.0), 0.0);
   EXPECT_EQ(plan.status().code(), StatusCode::kNotFound);

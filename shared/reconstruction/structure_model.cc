@@ -1,10 +1,40 @@
 #include "shared/reconstruction/structure_model.h"
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <sstream>
 
+#include "shared/util/units.h"
+
 namespace idi {
+
+namespace {
+
+// The largest angle between two of the views' camera centres about the 3D edge a-b: each centre's
+// direction from the edge's line, perpendicular to it.
+double EdgeViewSpread(const Vec3d& a,
+                      const Vec3d& b,
+                      const std::vector<int>& voters,
+                      const std::vector<CorrespondenceView>& views) {
+  const Vec3d axis = (b - a).normalized();
+  std::vector<Vec3d> around;
+  for (const int v : voters) {
+    const Rigid3d& cam_from_world = views[static_cast<std::size_t>(v)].cam_from_world;
+    const Vec3d from_a = -(cam_from_world.rotation.transpose() * cam_from_world.translation) - a;
+    const Vec3d across = from_a - from_a.dot(axis) * axis;
+    if (across.norm() > 1e-9) around.push_back(across.normalized());
+  }
+  double spread = 0;
+  for (std::size_t i = 0; i < around.size(); ++i) {
+    for (std::size_t j = i + 1; j < around.size(); ++j) {
+      spread = std::max(spread, std::acos(std::clamp(around[i].dot(around[j]), -1.0, 1.0)));
+    }
+  }
+  return spread;
+}
+
+}  // namespace
 
 StructureModel BuildModel(const Correspondences& corr, const std::vector<CorrespondenceView>& views,
                           const ModelOptions& options) {
@@ -21,7 +51,7 @@ StructureModel BuildModel(const Correspondences& corr, const std::vector<Corresp
     model.points.push_back(std::move(mp));
   }
   // For every image line, the model points on it, ordered along the line; adjacent pairs vote.
-  std::map<std::pair<int, int>, int> votes;
+  std::map<std::pair<int, int>, std::vector<int>> votes;  // edge -> the views that vote for it
   for (std::size_t v = 0; v < views.size(); ++v) {
     const ViewFeatures& f = *views[v].features;
     for (const ViewLine& line : f.lines) {
@@ -40,12 +70,19 @@ StructureModel BuildModel(const Correspondences& corr, const std::vector<Corresp
         ViewLine confirmed = line;
         confirmed.extension_px = 0;
         if (!WithinExtendedSegment(confirmed, mid, options.segment_margin_px)) continue;
-        votes[{std::min(a, b), std::max(a, b)}] += 1;
+        votes[{std::min(a, b), std::max(a, b)}].push_back(static_cast<int>(v));
       }
     }
   }
-  for (const auto& [edge, n] : votes) {
-    if (n >= options.min_views_for_edge) model.edges.push_back(edge);
+  for (const auto& [edge, voters] : votes) {
+    if (static_cast<int>(voters.size()) < options.min_views_for_edge) continue;
+    if (EdgeViewSpread(model.points[static_cast<std::size_t>(edge.first)].xyz,
+                       model.points[static_cast<std::size_t>(edge.second)].xyz,
+                       voters,
+                       views) < DegToRad(options.min_edge_spread_deg)) {
+      continue;
+    }
+    model.edges.push_back(edge);
   }
   return model;
 }

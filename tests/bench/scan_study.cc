@@ -13,7 +13,7 @@
 //                   [--span DEG] [--object NAME] [--elevation DEG] [--distance MM] [--flat-band]
 //                   [--ramp] [--junction-refit DEG] [--refine-poses]
 //                   [--no-rail-stops] [--no-track-test] [--no-table-support] [--no-second-round]
-//                   [--no-adjusted-test] [--rail-repeatability MM]
+//                   [--no-adjusted-test] [--rail-repeatability MM] [--edge-spread DEG]
 //                   [--list-points-over PX] [--json FILE] [--out DIR]
 // --flat-band, --ramp and --junction-refit DEG turn on the front end's opt-in fits
 // (empl.photometric_flat_band, empl.photometric_ramp, empl.junction_refit_angle_deg), --refine-poses the bundle
@@ -22,7 +22,8 @@
 // a track check by their own sigmas would drop (CorrespondenceOptions::track_outlier_z); --no-table-support leaves the
 // points near the table top free (ScanOptions::points_on_table); --no-second-round takes no extra stations when no
 // grasp fits the first model (ScanOptions::extra_azimuths_deg); --no-adjusted-test keeps every observation after the
-// adjustment (StructureOptions::adjusted_outlier_z);
+// adjustment (StructureOptions::adjusted_outlier_z); --edge-spread DEG sets the angle about an edge its views must
+// span (ModelOptions::min_edge_spread_deg, 2 by default; 0 takes every edge two views vote for);
 // --rail-repeatability MM sets
 // the twin's rail (0.1 mm std by default; 0 lands exactly where the encoder says), to tell the rail's share
 // of the errors.
@@ -65,7 +66,7 @@ int Main(int argc, char** argv) {
   double elevation_deg = 0, distance_mm = 0;
   bool flat_band = false, ramp = false, refine_poses = false, rail_stops = true, track_test = true,
        table_support = true, second_round = true, adjusted_test = true;
-  double junction_refit_deg = 0, rail_repeatability_mm = -1, list_over_px = 0;
+  double junction_refit_deg = 0, rail_repeatability_mm = -1, list_over_px = 0, edge_spread_deg = -1;
   unsigned seed = 1;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -111,6 +112,8 @@ int Main(int argc, char** argv) {
       adjusted_test = false;
     else if (a == "--junction-refit") junction_refit_deg = number();
     else if (a == "--rail-repeatability") rail_repeatability_mm = number();
+    else if (a == "--edge-spread")
+      edge_spread_deg = number();
     else if (a == "--list-points-over")
       list_over_px = number();
     else {
@@ -120,7 +123,9 @@ int Main(int argc, char** argv) {
           "[--stations K] [--span DEG] "
           "[--object box|prism|bracket|cylinder] [--elevation DEG] [--distance MM] [--flat-band] "
           "[--ramp] [--junction-refit DEG] [--refine-poses] [--no-rail-stops] [--no-track-test] [--no-table-support] "
-          "[--no-second-round] [--no-adjusted-test] [--rail-repeatability MM] [--list-points-over PX] [--json FILE] "
+          "[--no-second-round] [--no-adjusted-test] [--rail-repeatability MM] [--edge-spread DEG] [--list-points-over "
+          "PX] "
+          "[--json FILE] "
           "[--out DIR]\n");
       return 2;
     }
@@ -159,6 +164,7 @@ int Main(int argc, char** argv) {
                                                                       {"cylinder", sim::ObjectKind::kCylinder}};
   nlohmann::json all = nlohmann::json::array();
   int total = 0, picked = 0, failed_scans = 0, second_rounds = 0;
+  int true_edges_all = 0, false_edges_all = 0;
   std::vector<double> errors_all, ms_all;
   workcell::CorrespondenceTruth match_all;  // pooled over every scene
   double max_err_all = 0;
@@ -194,6 +200,7 @@ int Main(int argc, char** argv) {
       if (!track_test) o.structure.correspondence.track_outlier_z = 0;
       o.points_on_table = table_support;
       if (!adjusted_test) o.structure.adjusted_outlier_z = 0;
+      if (edge_spread_deg >= 0) o.structure.model.min_edge_spread_deg = edge_spread_deg;
       if (!second_round) o.extra_azimuths_deg.clear();
       if (stations > 0 || span_deg > 0) {
         // K stations (default: as many as the scan's default) evenly over +-span (default: its span).
@@ -237,6 +244,9 @@ int Main(int argc, char** argv) {
       const workcell::ScanTruth t = twin.Evaluate(*r, o);
       const workcell::CorrespondenceTruth m = twin.EvaluateCorrespondence(*r, list_over_px);
       for (const std::string& line : m.far_points) fmt::print("  {} {}: {}\n", name, s, line);
+      for (const std::string& e : t.false_edge_list) fmt::print("  {} {}: false edge: {}\n", name, s, e);
+      true_edges_all += t.true_edges;
+      false_edges_all += t.false_edges;
       if (m.scored) {
         match.Add(m);
         row.update({{"pair_true_matches", m.true_matches},
@@ -280,6 +290,8 @@ int Main(int argc, char** argv) {
                   {"vertex_views", t.vertex_views},
                   {"max_mm", t.max_vertex_error_mm},
                   {"spurious", t.spurious_points},
+                  {"true_edges", t.true_edges},
+                  {"false_edges", t.false_edges},
                   {"object_points", t.object_points},
                   {"held", t.held},
                   {"placed", t.placed},
@@ -346,6 +358,11 @@ int Main(int argc, char** argv) {
       max_err_all,
       Median(ms_all),
       second_rounds);
+  fmt::print(
+      "model edges on the objects of the successful scans: {} true, {} false (joining corners the object does "
+      "not join, or a spurious point)\n",
+      true_edges_all,
+      false_edges_all);
   fmt::print("correspondence over view pairs: {} true, {} false matches: precision {:.2f} %, recall {:.2f} % of the corners "
              "found in both views ({}), {:.2f} % of those visible in both ({}); epipolar error of matches median {:.4f} px\n",
              match_all.true_matches, match_all.false_matches, 100.0 * match_all.precision(), 100.0 * match_all.recall(),

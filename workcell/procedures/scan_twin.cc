@@ -123,6 +123,36 @@ ScanTruth ScanTwin::Evaluate(const ScanReport& report, const ScanOptions& option
       if (best > t.match_mm) ++t.spurious_points;
     }
   }
+  if (!corners.empty()) {
+    // Each object point's corner (-1: spurious), then each model edge between object points.
+    std::map<int, int> corner_of;
+    for (int i : report.object_points) {
+      int nearest = -1;
+      double best = t.match_mm;
+      for (std::size_t c = 0; c < corners.size(); ++c) {
+        const double d = (pts[static_cast<std::size_t>(i)].xyz - corners[c]).norm();
+        if (d <= best) {
+          best = d;
+          nearest = static_cast<int>(c);
+        }
+      }
+      corner_of[i] = nearest;
+    }
+    for (const auto& [a, b] : report.structure.model.edges) {
+      const auto ia = corner_of.find(a), ib = corner_of.find(b);
+      if (ia == corner_of.end() || ib == corner_of.end()) continue;
+      const int ca = ia->second, cb = ib->second;
+      const bool is_edge = ca >= 0 && cb >= 0 && std::any_of(wire.edges.begin(), wire.edges.end(), [&](const auto& w) {
+                             return (w.first == ca && w.second == cb) || (w.first == cb && w.second == ca);
+                           });
+      if (is_edge) {
+        ++t.true_edges;
+      } else {
+        ++t.false_edges;
+        t.false_edge_list.push_back(fmt::format("model points {}-{} (corners {}-{})", a, b, ca, cb));
+      }
+    }
+  }
   if (report.cylinder && target_.shape.kind == sim::ObjectKind::kCylinder) {
     const Vec3d base = target_.world_from_object.translation;
     t.cylinder_axis_error_mm = (report.cylinder_axis_xy - base.head<2>()).norm();

@@ -39,6 +39,11 @@ struct ScanTruth {
   std::vector<int> vertex_views;  // per true corner: the views that observe its model point (0 when not matched)
   int object_points = 0;        // model points the scan put on the object
   int spurious_points = 0;      // of those, farther than `match_mm` from every true corner (non-cylinders)
+  // The model's edges between object points: those joining the matches of two corners the object's
+  // wireframe joins, and the rest (an edge through the solid or to a spurious point: it can fake a wall
+  // in the grasp planner's cross-sections).
+  int true_edges = 0, false_edges = 0;
+  std::vector<std::string> false_edge_list;  // "model points a-b (corners i-j)", for the study's log
   bool held = false;            // the hand's grasp held (the twin's contact physics)
   bool lifted = false;          // the object rose with the hand
   bool placed = false;          // it ended up on the table at the place position (within 20 mm)
