@@ -109,8 +109,14 @@ struct Wall {
   Vec2d a = Vec2d::Zero(), b = Vec2d::Zero();
 };
 
-std::vector<Vec2d> CrossSection(const std::vector<Vec3d>& points, const std::vector<std::pair<int, int>>& edges, double z,
-                                double tol_mm, std::optional<Wall>* wall = nullptr, double min_wall_mm = 0.0) {
+std::vector<Vec2d> CrossSection(const std::vector<Vec3d>& points,
+                                const std::vector<std::pair<int, int>>& edges,
+                                double z,
+                                double tol_mm,
+                                std::optional<Wall>* wall = nullptr,
+                                double min_wall_mm = 0.0,
+                                bool* inner_estimate = nullptr) {
+  if (inner_estimate != nullptr) *inner_estimate = false;
   std::vector<Vec2d> xy;
   int crossings = 0;
   for (const auto& [i, j] : edges) {
@@ -156,6 +162,10 @@ std::vector<Vec2d> CrossSection(const std::vector<Vec3d>& points, const std::vec
   // Too few edges seen to outline the section (e.g. a prism whose sloped edges were not confirmed):
   // for a convex object every segment between two of its points lies inside it, so where the segments
   // between points below and above cross the plane is inside the section (an inner estimate again).
+  // Its sides are not the object's faces - and an object need not be convex: across a bracket's L these
+  // segments span the open side - so it serves the walls' lean above and below a contact, and
+  // `inner_estimate` tells the planner to put no finger on it.
+  if (inner_estimate != nullptr) *inner_estimate = true;
   for (const Vec3d& a : points) {
     for (const Vec3d& b : points) {
       if (a.z() < z - tol_mm && b.z() > z + tol_mm) {
@@ -360,8 +370,9 @@ Result<std::vector<GraspPlan>> PlanTopGrasps(const std::vector<Vec3d>& points,
     std::vector<Vec2d> below, above;
     std::vector<PlanarGrasp> candidates;
     std::optional<Wall> wall, wall_below, wall_above;
+    bool inner_estimate = false;
     if (!edges.empty()) {
-      hull = CrossSection(points, edges, contact_z, 0.5, &wall, min_wall_mm);
+      hull = CrossSection(points, edges, contact_z, 0.5, &wall, min_wall_mm, &inner_estimate);
       below = CrossSection(points, edges, contact_z - dz, 0.5, &wall_below, min_wall_mm);
       above = CrossSection(points, edges, contact_z + dz, 0.5, &wall_above, min_wall_mm);
       if (wall && wall_below && wall_above) {
@@ -373,7 +384,7 @@ Result<std::vector<GraspPlan>> PlanTopGrasps(const std::vector<Vec3d>& points,
       }
       if (hull.size() < 3 && candidates.empty()) continue;
     }
-    if (hull.size() >= 3) {
+    if (hull.size() >= 3 && !inner_estimate) {
       const std::vector<PlanarGrasp> on_hull = Candidates(hull, HullCentroid(hull), o);
       candidates.insert(candidates.end(), on_hull.begin(), on_hull.end());
     }

@@ -65,7 +65,8 @@ struct GraspPlan {
 
 // Plans a top grasp on an object given its model points (world frame, mm; z up, the table at
 // table_z_mm) and, when known, its edges (index pairs into `points`): with edges the silhouette is the
-// model's cross-section at each candidate contact height and leaning walls count against friction.
+// model's cross-section at each candidate contact height and leaning walls count against friction; a
+// height whose section the edges and points above do not outline gets no fingers.
 // NotFound when no antipodal grasp fits the hand; InvalidArgument on bad input.
 Result<GraspPlan> PlanTopGrasp(const std::vector<Vec3d>& points, double table_z_mm, const GraspOptions& options = {},
                                const std::vector<std::pair<int, int>>& edges = {});
