@@ -112,9 +112,13 @@ int Main(int argc, char** argv) {
       adjusted_test = false;
     else if (a == "--junction-refit") junction_refit_deg = number();
     else if (a == "--rail-repeatability") rail_repeatability_mm = number();
-    else if (a == "--edge-spread")
+    else if (a == "--edge-spread") {
       edge_spread_deg = number();
-    else if (a == "--list-points-over")
+      if (edge_spread_deg < 0) {
+        fmt::print(stderr, "scan_study: --edge-spread needs an angle of 0 deg or more, got {}\n", edge_spread_deg);
+        return 2;
+      }
+    } else if (a == "--list-points-over")
       list_over_px = number();
     else {
       fmt::print(

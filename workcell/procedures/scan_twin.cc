@@ -117,14 +117,8 @@ ScanTruth ScanTwin::Evaluate(const ScanReport& report, const ScanOptions& option
   if (t.matched_vertices > 0) t.mean_vertex_error_mm = sum / t.matched_vertices;
   t.object_points = static_cast<int>(report.object_points.size());
   if (!corners.empty()) {
-    for (int i : report.object_points) {
-      double best = std::numeric_limits<double>::infinity();
-      for (const Vec3d& c : corners) best = std::min(best, (pts[static_cast<std::size_t>(i)].xyz - c).norm());
-      if (best > t.match_mm) ++t.spurious_points;
-    }
-  }
-  if (!corners.empty()) {
-    // Each object point's corner (-1: spurious), then each model edge between object points.
+    // Each object point's corner within match_mm (-1: a spurious point), then each model edge between
+    // object points.
     std::map<int, int> corner_of;
     for (int i : report.object_points) {
       int nearest = -1;
@@ -137,6 +131,7 @@ ScanTruth ScanTwin::Evaluate(const ScanReport& report, const ScanOptions& option
         }
       }
       corner_of[i] = nearest;
+      if (nearest < 0) ++t.spurious_points;
     }
     for (const auto& [a, b] : report.structure.model.edges) {
       const auto ia = corner_of.find(a), ib = corner_of.find(b);
