@@ -4,22 +4,37 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstring>
 
 #include "shared/runtime/systemd_notify.h"
 
 namespace idi::rmp {
 namespace {
 
-// FNV-1a over the pixels: a frozen camera repeats its last buffer bit for bit (sensor noise makes
-// two real frames differ).
+// A hash of the pixels: a frozen camera repeats its last buffer bit for bit (sensor noise makes two
+// real frames differ). Four independent multiply-rotate chains over 8-byte words (FNV-1a byte by byte
+// was one serial multiply per byte: 1.2 ms per 640 x 480 frame on the loop's thread), the rest of
+// each row byte by byte.
 uint64_t ContentHash(const cv::Mat& m) {
-  uint64_t h = 1469598103934665603ull;
+  constexpr uint64_t kPrime = 1099511628211ull;
+  const auto mix = [](uint64_t h, uint64_t w) {
+    h = (h ^ w) * kPrime;
+    return (h << 29) | (h >> 35);
+  };
+  uint64_t h[4] = {1469598103934665603ull, 0x9E3779B97F4A7C15ull, 0xC2B2AE3D27D4EB4Full, 0x165667B19E3779F9ull};
   for (int r = 0; r < m.rows; ++r) {
     const uint8_t* p = m.ptr<uint8_t>(r);
     const std::size_t n = static_cast<std::size_t>(m.cols) * m.elemSize();
-    for (std::size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 1099511628211ull;
+    std::size_t i = 0;
+    for (; i + 32 <= n; i += 32) {
+      uint64_t w[4];
+      std::memcpy(w, p + i, sizeof(w));
+      for (int k = 0; k < 4; ++k) h[k] = mix(h[k], w[k]);
+    }
+    for (; i < n; ++i) h[0] = mix(h[0], p[i]);
+    h[1] = mix(h[1], static_cast<uint64_t>(r));  // rows of different lengths or order hash apart
   }
-  return h;
+  return mix(mix(mix(h[0], h[1]), h[2]), h[3]);
 }
 
 int CameraIndex(const std::string& name) {
