@@ -12,41 +12,66 @@ namespace {
 
 bool FinitePoint(const Vec2d& p) { return std::isfinite(p.x()) && std::isfinite(p.y()); }
 
+// Inside the polygon (even-odd rule) and at least `margin` from its outline. The parity test comes
+// first: most points asked about lie outside, and they need no distances.
 bool InsidePolygonWithMargin(const std::vector<Vec2d>& poly, const Vec2d& p, double margin) {
   bool inside = false;
-  double min_dist = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
     const Vec2d& a = poly[i];
     const Vec2d& b = poly[j];
     if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) {
       inside = !inside;
     }
-    const Vec2d d = b - a;
+  }
+  if (!inside) return false;
+  const double margin2 = margin * margin;
+  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
+    const Vec2d& a = poly[i];
+    const Vec2d d = poly[j] - a;
     const double l2 = d.squaredNorm();
     const double t = l2 < 1e-18 ? 0.0 : std::clamp((p - a).dot(d) / l2, 0.0, 1.0);
-    min_dist = std::min(min_dist, (a + t * d - p).norm());
+    if ((a + t * d - p).squaredNorm() < margin2) return false;
   }
-  return inside && min_dist >= margin;
+  return true;
 }
 
-// Nearest point on a polyline to p: (point, distance).
-std::pair<Vec2d, double> NearestOnPolyline(const std::vector<Vec2d>& line, const Vec2d& p) {
-  if (line.size() == 1) return {line[0], (line[0] - p).norm()};
-  Vec2d best_q = line.front();
-  double best = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 1; i < line.size(); ++i) {
-    const Vec2d a = line[i - 1], d = line[i] - a;
-    const double l2 = d.squaredNorm();
-    const double t = l2 < 1e-18 ? 0.0 : std::clamp((p - a).dot(d) / l2, 0.0, 1.0);
-    const Vec2d q = a + t * d;
-    const double dist = (q - p).norm();
-    if (dist < best) {
-      best = dist;
-      best_q = q;
+// A polyline's segments with what the nearest-point search needs precomputed, so that searching it
+// for many points costs a few multiplications per segment.
+class PolylineSearch {
+ public:
+  explicit PolylineSearch(const std::vector<Vec2d>& line) : line_(line) {
+    for (std::size_t i = 1; i < line.size(); ++i) {
+      const Vec2d d = line[i] - line[i - 1];
+      const double l2 = d.squaredNorm();
+      seg_.push_back({d, l2 < 1e-18 ? 0.0 : 1.0 / l2});
     }
   }
-  return {best_q, best};
-}
+  // Nearest point on the polyline to p: (point, distance).
+  std::pair<Vec2d, double> Nearest(const Vec2d& p) const {
+    if (line_.size() == 1) return {line_[0], (line_[0] - p).norm()};
+    Vec2d best_q = line_.front();
+    double best2 = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < seg_.size(); ++i) {
+      const Vec2d& a = line_[i];
+      const double t = std::clamp((p - a).dot(seg_[i].d) * seg_[i].inv_l2, 0.0, 1.0);
+      const Vec2d q = a + t * seg_[i].d;
+      const double dist2 = (q - p).squaredNorm();
+      if (dist2 < best2) {
+        best2 = dist2;
+        best_q = q;
+      }
+    }
+    return {best_q, std::sqrt(best2)};
+  }
+
+ private:
+  struct Segment {
+    Vec2d d;
+    double inv_l2;
+  };
+  const std::vector<Vec2d>& line_;
+  std::vector<Segment> seg_;
+};
 
 // Unit direction of the polyline near its back end, from the last `span_m` of it.
 Vec2d EndDirection(const std::vector<Vec2d>& pts, double span_m) {
@@ -117,8 +142,24 @@ std::vector<char> TrackModel::StretchInView(const std::vector<std::vector<Vec2d>
   std::vector<char> point(n, 0);
   std::vector<double> s(n, 0.0);
   std::vector<std::size_t> out(n + 1, 0);  // prefix counts of samples out of view
+  // Each footprint's bounding box turns away most samples (those behind or beside the view) cheaply.
+  std::vector<std::pair<Vec2d, Vec2d>> boxes;
+  for (const auto& fp : footprints_odom) {
+    Vec2d lo = Vec2d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+    for (const Vec2d& q : fp) {
+      lo = lo.cwiseMin(q);
+      hi = hi.cwiseMax(q);
+    }
+    boxes.emplace_back(lo, hi);
+  }
+  const auto in_boxes = [&](const Vec2d& p) {
+    for (const auto& [lo, hi] : boxes) {
+      if (!(p.x() >= lo.x() && p.x() <= hi.x() && p.y() >= lo.y() && p.y() <= hi.y())) return false;
+    }
+    return true;
+  };
   for (std::size_t i = 0; i < n; ++i) {
-    point[i] = InView(footprints_odom, samples_[i].xy) ? 1 : 0;
+    point[i] = in_boxes(samples_[i].xy) && InView(footprints_odom, samples_[i].xy) ? 1 : 0;
     if (i > 0) s[i] = s[i - 1] + (samples_[i].xy - samples_[i - 1].xy).norm();
     out[i + 1] = out[i] + (point[i] ? 0 : 1);
   }
@@ -283,11 +324,12 @@ Result<TrackUpdateStats> TrackModel::Update(const TrackObservation& observation,
     const std::size_t k_end = extends ? piece.pts.size() - 1 : k_last;
     std::vector<Vec2d> old_section;
     for (std::size_t i = i_min; i <= i_max; ++i) old_section.push_back(samples_[i].xy);
+    const PolylineSearch old_search(old_section);
     std::vector<TrackSample> spliced(samples_.begin(), samples_.begin() + static_cast<std::ptrdiff_t>(i_min));
     for (std::size_t k = k_first; k <= k_end; ++k) {
       TrackSample t{piece.pts[k], 1, false, observation.timestamp_ns};
       if (k <= k_last) {
-        const auto [q, d] = NearestOnPolyline(old_section, t.xy);
+        const auto [q, d] = old_search.Nearest(t.xy);
         if (d < options_.association_gate_m) t.xy += (1.0 - options_.blend) * (q - t.xy);
         const std::size_t i = model_index[k] != std::numeric_limits<std::size_t>::max() ? model_index[k] : i_min;
         t.support = std::min(options_.max_support, samples_[i].support + 1);
