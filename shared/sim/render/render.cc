@@ -77,26 +77,39 @@ void ApplyExposure(cv::Mat& radiance, const internal::PixelGrid& grid, const Cam
   }
 }
 
-// The surfaces blurred by the PSF plus the spot layer (its PSF already included), cropped.
-cv::Mat FinishOptics(cv::Mat& radiance, const cv::Mat* spots, const internal::PixelGrid& grid,
-                     const CameraModel& camera, const RenderOptions& options) {
+// The surfaces blurred by the PSF plus the spot layer (its PSF already included), cropped. With
+// `own` false a gray image is a view into `radiance` (no copy: valid until it is rendered into again).
+cv::Mat FinishOptics(cv::Mat& radiance,
+                     const cv::Mat* spots,
+                     const internal::PixelGrid& grid,
+                     const CameraModel& camera,
+                     const RenderOptions& options,
+                     bool own) {
   const int ch = radiance.channels();
   ApplyExposure(radiance, grid, camera, options);
   ApplyPsf(&radiance, options.psf_sigma_px);
-  cv::Mat crop = radiance(cv::Rect(-grid.x0, -grid.y0, camera.width, camera.height)).clone();
+  cv::Mat crop = radiance(cv::Rect(-grid.x0, -grid.y0, camera.width, camera.height));
+  if (own && ch != 3) crop = crop.clone();
   if (spots != nullptr) {
     cv::Mat sp = spots->clone();
     ApplyExposure(sp, grid, camera, options);
     crop += sp(cv::Rect(-grid.x0, -grid.y0, camera.width, camera.height));
   }
-  if (ch == 3) cv::cvtColor(crop, crop, cv::COLOR_RGB2BGR);
+  if (ch == 3) {
+    cv::Mat bgr;
+    cv::cvtColor(crop, bgr, cv::COLOR_RGB2BGR);
+    return bgr;
+  }
   return crop;
 }
 
-}  // namespace
-
-Result<cv::Mat> RenderIrradiance(const Scene& scene, const CameraModel& camera, const Rigid3d& cam_from_world,
-                                 const RenderOptions& options, GroundTruth* truth) {
+// RenderIrradiance, its gray image a view into this thread's raster buffer unless `own`.
+Result<cv::Mat> Irradiance(const Scene& scene,
+                           const CameraModel& camera,
+                           const Rigid3d& cam_from_world,
+                           const RenderOptions& options,
+                           GroundTruth* truth,
+                           bool own) {
   IDI_RETURN_IF_ERROR(options.Check());
   IDI_RETURN_IF_ERROR(CheckCamera(camera, cam_from_world));
   IDI_RETURN_IF_ERROR(scene.Check());
@@ -110,12 +123,24 @@ Result<cv::Mat> RenderIrradiance(const Scene& scene, const CameraModel& camera, 
   cv::Mat spots;
   const bool have_spots = internal::RasterizeSpots(prep, options.color, &spots);
   if (truth != nullptr) internal::ComputeGroundTruth(prep, options, truth);
-  return FinishOptics(radiance, have_spots ? &spots : nullptr, *prep.grid, camera, options);
+  return FinishOptics(radiance, have_spots ? &spots : nullptr, *prep.grid, camera, options, own);
+}
+
+}  // namespace
+
+Result<cv::Mat> RenderIrradiance(const Scene& scene,
+                                 const CameraModel& camera,
+                                 const Rigid3d& cam_from_world,
+                                 const RenderOptions& options,
+                                 GroundTruth* truth) {
+  return Irradiance(scene, camera, cam_from_world, options, truth, /*own=*/true);
 }
 
 Result<cv::Mat> RenderScene(const Scene& scene, const CameraModel& camera, const Rigid3d& cam_from_world,
                             const RenderOptions& options, GroundTruth* truth) {
-  IDI_ASSIGN_OR_RETURN(const cv::Mat irradiance, RenderIrradiance(scene, camera, cam_from_world, options, truth));
+  // The sensor reads the irradiance in place: it need not be copied out of the raster buffer.
+  IDI_ASSIGN_OR_RETURN(const cv::Mat irradiance,
+                       Irradiance(scene, camera, cam_from_world, options, truth, /*own=*/false));
   return ApplySensor(irradiance, options.sensor, options.seed);
 }
 
