@@ -267,11 +267,12 @@ Result<TrackUpdateStats> TrackModel::Update(const TrackObservation& observation,
     std::vector<std::size_t> model_index(piece.pts.size(), std::numeric_limits<std::size_t>::max());
     int matched = 0;
     for (std::size_t k = 0; k < piece.pts.size(); ++k) {
-      double best = options_.association_gate_m;
+      // Squared distances: the same nearest sample without a square root per pair.
+      double best2 = options_.association_gate_m * options_.association_gate_m;
       for (std::size_t i = first; i < samples_.size(); ++i) {
-        const double d = (samples_[i].xy - piece.pts[k]).norm();
-        if (d < best) {
-          best = d;
+        const double d2 = (samples_[i].xy - piece.pts[k]).squaredNorm();
+        if (d2 < best2) {
+          best2 = d2;
           model_index[k] = i;
         }
       }
