@@ -35,6 +35,57 @@ bool InsidePolygonWithMargin(const std::vector<Vec2d>& poly, const Vec2d& p, dou
   return true;
 }
 
+// A footprint polygon prepared for many InsidePolygonWithMargin questions: its bounding box turns
+// away most points outside cheaply, and an edge whose line lies at least `margin` from the point
+// needs no clamped distance.
+class FootprintTest {
+ public:
+  explicit FootprintTest(const std::vector<Vec2d>& poly) : poly_(poly) {
+    lo_ = Vec2d::Constant(std::numeric_limits<double>::infinity());
+    hi_ = -lo_;
+    for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
+      lo_ = lo_.cwiseMin(poly[i]);
+      hi_ = hi_.cwiseMax(poly[i]);
+      const Vec2d d = poly[j] - poly[i];
+      const double l2 = d.squaredNorm();
+      edges_.push_back({d, l2 < 1e-18 ? 0.0 : 1.0 / l2, l2 < 1e-18 ? 0.0 : 1.0 / std::sqrt(l2)});
+    }
+  }
+  // InsidePolygonWithMargin(poly, p, margin), the same answer.
+  bool Contains(const Vec2d& p, double margin) const {
+    if (poly_.size() < 3) return false;
+    if (!(p.x() >= lo_.x() && p.x() <= hi_.x() && p.y() >= lo_.y() && p.y() <= hi_.y())) return false;
+    bool inside = false;
+    for (std::size_t i = 0, j = poly_.size() - 1; i < poly_.size(); j = i++) {
+      const Vec2d& a = poly_[i];
+      const Vec2d& b = poly_[j];
+      if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) {
+        inside = !inside;
+      }
+    }
+    if (!inside) return false;
+    const double margin2 = margin * margin;
+    for (std::size_t i = 0; i < poly_.size(); ++i) {
+      const Edge& e = edges_[i];
+      const Vec2d ap = p - poly_[i];
+      // The distance to the edge's line bounds the distance to the edge from below.
+      if (e.inv_len > 0 && std::abs(e.d.x() * ap.y() - e.d.y() * ap.x()) * e.inv_len > 1.000001 * margin) continue;
+      const double t = std::clamp(ap.dot(e.d) * e.inv_l2, 0.0, 1.0);
+      if ((t * e.d - ap).squaredNorm() < margin2) return false;
+    }
+    return true;
+  }
+
+ private:
+  struct Edge {
+    Vec2d d;
+    double inv_l2, inv_len;
+  };
+  const std::vector<Vec2d>& poly_;
+  std::vector<Edge> edges_;
+  Vec2d lo_, hi_;
+};
+
 // A polyline's segments with what the nearest-point search needs precomputed, so that searching it
 // for many points costs a few multiplications per segment.
 class PolylineSearch {
@@ -142,24 +193,16 @@ std::vector<char> TrackModel::StretchInView(const std::vector<std::vector<Vec2d>
   std::vector<char> point(n, 0);
   std::vector<double> s(n, 0.0);
   std::vector<std::size_t> out(n + 1, 0);  // prefix counts of samples out of view
-  // Each footprint's bounding box turns away most samples (those behind or beside the view) cheaply.
-  std::vector<std::pair<Vec2d, Vec2d>> boxes;
-  for (const auto& fp : footprints_odom) {
-    Vec2d lo = Vec2d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-    for (const Vec2d& q : fp) {
-      lo = lo.cwiseMin(q);
-      hi = hi.cwiseMax(q);
-    }
-    boxes.emplace_back(lo, hi);
-  }
-  const auto in_boxes = [&](const Vec2d& p) {
-    for (const auto& [lo, hi] : boxes) {
-      if (!(p.x() >= lo.x() && p.x() <= hi.x() && p.y() >= lo.y() && p.y() <= hi.y())) return false;
+  std::vector<FootprintTest> tests;
+  for (const auto& fp : footprints_odom) tests.emplace_back(fp);
+  const auto in_view = [&](const Vec2d& p) {
+    for (const FootprintTest& t : tests) {
+      if (!t.Contains(p, options_.footprint_margin_m)) return false;
     }
     return true;
   };
   for (std::size_t i = 0; i < n; ++i) {
-    point[i] = in_boxes(samples_[i].xy) && InView(footprints_odom, samples_[i].xy) ? 1 : 0;
+    point[i] = in_view(samples_[i].xy) ? 1 : 0;
     if (i > 0) s[i] = s[i - 1] + (samples_[i].xy - samples_[i - 1].xy).norm();
     out[i + 1] = out[i] + (point[i] ? 0 : 1);
   }
