@@ -134,7 +134,10 @@ void ControlLoop::PerceivePair(const hal::Image& left, const hal::Image& right, 
   ++stats_.perceptions;
   stats_.perception_ms.push_back(result->stats.total_ms);
   const Pose2 at_exposure = OdometryAt(exposure);
+  const auto update_start = std::chrono::steady_clock::now();
   auto upd = track_.Update(result->observation, at_exposure);
+  stats_.track_update_ms.push_back(
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - update_start).count());
   if (!upd.ok()) {
     spdlog::warn("track update refused: {}", upd.status().ToString());
   } else if (spdlog::should_log(spdlog::level::trace)) {

@@ -88,6 +88,7 @@ struct ControlLoopStats {
   uint64_t zero_ticks = 0, drive_ticks = 0;
   std::map<std::string, uint64_t> decisions;  // ticks per decision
   std::vector<double> perception_ms;          // per perceived pair
+  std::vector<double> track_update_ms;        // per perceived pair: the track model's update (wall)
   std::vector<double> frame_to_command_ms;    // exposure to the tick that first used it
   int64_t running_since_ns = -1;              // the RMP driver reached running
   int64_t finished_ns = -1;                   // stopped at the end

@@ -180,6 +180,7 @@ Result<SimRunResult> RunSimulation(const SimRunOptions& o) {
   SimRunResult result;
   result.truth = world->Truth();
   result.stats = loop.stats();
+  result.render_wall_s = world->render_wall_s();
   FillFromLoop(loop, &report);
   const ControlLoopStats& st = loop.stats();
   const int64_t t_begin = st.running_since_ns >= 0 ? st.running_since_ns : sim_start;

@@ -56,6 +56,7 @@ struct SimRunResult {
   RunReport report;
   SimTruth truth;
   ControlLoopStats stats;
+  double render_wall_s = 0.0;  // SimWorld::render_wall_s at the end
 };
 
 Result<SimRunResult> RunSimulation(const SimRunOptions& options);

@@ -1,6 +1,7 @@
 #include "rmp/app/sim_world.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <deque>
 #include <functional>
@@ -113,6 +114,7 @@ class TwinCameras final : public sim::SimProcess, public FrameSource {
       if (render[0] && render[1] && ro.threads == 0) ro.threads = 1;
       rendered[k] = sim::RenderScene(scene_, cam.intrinsics, (world_from_vehicle * cam.vehicle_from_camera).Inverse(), ro);
     };
+    const auto render_start = std::chrono::steady_clock::now();
     if (render[0] && render[1]) {
       std::thread right([&] { render_camera(1); });
       render_camera(0);
@@ -122,6 +124,7 @@ class TwinCameras final : public sim::SimProcess, public FrameSource {
         if (render[k]) render_camera(k);
       }
     }
+    world_->render_wall_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
     for (int k = 0; k < 2; ++k) {
       if (!deliver[k]) continue;
       if (render[k]) {

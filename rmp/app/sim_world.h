@@ -95,6 +95,9 @@ class SimWorld {
   SimTruth Truth() const;
   // The world pose of the vehicle (truth) now.
   Pose2 TruthPose() const;
+  // Wall-clock seconds spent rendering the cameras' images so far (both cameras, the time they took
+  // together): where a faster-than-real-time run spends its time.
+  double render_wall_s() const { return render_wall_s_; }
 
  private:
   SimWorld(const TrackSpec& track, const SimOptions& options);
@@ -116,6 +119,7 @@ class SimWorld {
   bool following_ = false;
   bool was_following_ = false;
   SimTruth truth_;
+  double render_wall_s_ = 0.0;
   friend class TwinCameras;
 };
 

@@ -3,7 +3,9 @@
 // default configuration except the cameras at 30 Hz (two rendered 640x480 cameras, stereo tape
 // perception, planner, the RMP over the virtual CAN bus), run N times. Reports per run the simulated
 // time (first to last control tick), the wall time, the process CPU time and the speed factor
-// (simulated seconds per wall second), then the median factor.
+// (simulated seconds per wall second), then the median factor, and where each run's wall time went:
+// rendering the two cameras (one thread each), the pair's perception (features on two threads, then
+// stereo and the ground plane), the track model's update, and the rest (planner, RMP twin, CAN, driver).
 //
 // Wall time depends on what else the machine runs; the CPU time beside it shows the work itself.
 // Run: build/<dir>/tests/bench/rmp_closed_loop_bench [--runs 3] [--rate-hz 30] [--track TRACK.yaml]
@@ -103,6 +105,7 @@ int Main(int argc, char** argv) {
   fmt::print("| run | completed | stereo pairs | simulated s | wall s | CPU s | speed factor (sim/wall) |\n");
   fmt::print("|---|---|---|---|---|---|---|\n");
   std::vector<double> factors;
+  std::vector<std::string> split;
   for (int r = 0; r < runs; ++r) {
     int64_t first_ns = -1, last_ns = -1;
     o.on_tick = [&](const rmp::TickRecord& tick, rmp::SimWorld&, const rmp::ControlLoop&) {
@@ -122,9 +125,27 @@ int Main(int argc, char** argv) {
     factors.push_back(sim_s / wall);
     fmt::print("| {} | {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |\n", r + 1, res->report.completed ? "yes" : "no",
                res->report.frames, sim_s, wall, cpu, sim_s / wall);
+    double perception_s = 0, track_s = 0;
+    for (const double ms : res->stats.perception_ms) perception_s += ms * 1e-3;
+    for (const double ms : res->stats.track_update_ms) track_s += ms * 1e-3;
+    const double rest = wall - res->render_wall_s - perception_s - track_s;
+    split.push_back(
+        fmt::format("| {} | {:.2f} ({:.0f} %) | {:.2f} ({:.0f} %) | {:.2f} ({:.0f} %) | {:.2f} ({:.0f} %) |",
+                    r + 1,
+                    res->render_wall_s,
+                    100 * res->render_wall_s / wall,
+                    perception_s,
+                    100 * perception_s / wall,
+                    track_s,
+                    100 * track_s / wall,
+                    rest,
+                    100 * rest / wall));
   }
   std::sort(factors.begin(), factors.end());
   fmt::print("\nmedian speed factor: {:.2f}x real time\n", factors[factors.size() / 2]);
+  fmt::print("\nWall seconds by stage (each stage's own threads run at once; the stages one after another):\n\n");
+  fmt::print("| run | rendering | perception | track model | rest |\n|---|---|---|---|---|\n");
+  for (const std::string& row : split) fmt::print("{}\n", row);
   return 0;
 }
 
