@@ -4,6 +4,7 @@
 #include <cmath>
 #include <map>
 #include <sstream>
+#include <string>
 
 #include "shared/util/units.h"
 
@@ -35,6 +36,21 @@ double EdgeViewSpread(const Vec3d& a,
 }
 
 }  // namespace
+
+Status ModelOptions::Check() const {
+  if (min_views_for_edge < 1) {
+    return InvalidArgument("model: min_views_for_edge must be 1 or more, got " + std::to_string(min_views_for_edge));
+  }
+  if (!(segment_margin_px >= 0) || !std::isfinite(segment_margin_px)) {
+    return InvalidArgument("model: segment_margin_px must be a finite 0 px or more, got " +
+                           std::to_string(segment_margin_px));
+  }
+  if (!(min_edge_spread_deg >= 0 && min_edge_spread_deg <= 180)) {
+    return InvalidArgument("model: min_edge_spread_deg must be in [0, 180], got " +
+                           std::to_string(min_edge_spread_deg));
+  }
+  return Status::Ok();
+}
 
 StructureModel BuildModel(const Correspondences& corr, const std::vector<CorrespondenceView>& views,
                           const ModelOptions& options) {

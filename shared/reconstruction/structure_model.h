@@ -34,7 +34,8 @@ struct ModelOptions {
   // cameras that saw them). An edge missed this way makes the grasp planner's cross-sections smaller;
   // an accidental one adds a wall that is not there.
   double min_edge_spread_deg = 2.0;
-  bool Check() const { return min_views_for_edge >= 1 && segment_margin_px >= 0 && min_edge_spread_deg >= 0; }
+  // InvalidArgument naming the option that is out of range (NaN included).
+  Status Check() const;
 };
 
 // Points from the point tracks; an edge joins two points that lie on one EMPL line in at least

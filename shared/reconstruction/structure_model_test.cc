@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <string>
+
 #include "tests/support/wireframe_views.h"
 
 namespace idi {
@@ -92,6 +95,23 @@ TEST(StructureModelTest, TheSpreadThresholdIsTheAngleAboutTheEdge) {
         SceneWithLineThroughBoth(a, b, {Vec3d(1000, 0, 700), Vec3d(1000 * std::cos(h), 1000 * std::sin(h), 700)});
     EXPECT_EQ(BuildModel(s.correspondences, ViewsOf(s)).edges.size(), expected) << deg << " deg apart";
   }
+}
+
+TEST(StructureModelTest, OptionsOutOfRangeAreRefusedByName) {
+  EXPECT_TRUE(ModelOptions{}.Check().ok());
+  ModelOptions o;
+  o.min_views_for_edge = 0;
+  EXPECT_NE(o.Check().message().find("min_views_for_edge"), std::string::npos) << o.Check().message();
+  o = {};
+  o.segment_margin_px = std::nan("");
+  EXPECT_NE(o.Check().message().find("segment_margin_px"), std::string::npos) << o.Check().message();
+  o = {};
+  o.min_edge_spread_deg = -1;
+  EXPECT_NE(o.Check().message().find("min_edge_spread_deg"), std::string::npos) << o.Check().message();
+  o.min_edge_spread_deg = std::nan("");
+  EXPECT_FALSE(o.Check().ok());
+  o.min_edge_spread_deg = 0;
+  EXPECT_TRUE(o.Check().ok());
 }
 
 }  // namespace

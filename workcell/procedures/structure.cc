@@ -74,6 +74,7 @@ Result<StructureResult> ReconstructStructure(const std::vector<StructureView>& v
   if (views.size() < 2) {
     return InvalidArgument("reconstruction needs at least two views, got " + std::to_string(views.size()));
   }
+  IDI_RETURN_IF_ERROR(options.model.Check());
   for (std::size_t v = 0; v < views.size(); ++v) {
     const StructureView& sv = views[v];
     const std::string who = "view " + std::to_string(v) + (sv.name.empty() ? "" : " (" + sv.name + ")");
