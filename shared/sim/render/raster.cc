@@ -322,6 +322,33 @@ class PixelIntegrator {
     return area_sum > 0 ? Vec3d(sum / area_sum) : background_;
   }
 
+  // Pixel(q, cand, n_cand, radius, 1) into *value (true), except for a pixel covered by one group in
+  // front of the rest: false, with the surface and the point and footprint that Pixel would shade it at,
+  // so that the caller can shade such pixels in batches (ShadeBatch gives Shade's values to the bit).
+  bool PixelOrCovered(const Vec2d* q,
+                      const int* cand,
+                      int n_cand,
+                      double radius,
+                      Vec3d* value,
+                      int* surface,
+                      Vec2d* c,
+                      double* footprint) {
+    IDI_CHECK(!spots_only_, "PixelOrCovered shades surfaces, not the spot layer");
+    *c = (q[0] + q[1] + q[2] + q[3]) / 4;
+    const int front = Classify(*c, radius, cand, n_cand, q, 4);
+    if (active_.empty()) {
+      *value = background_;
+      return true;
+    }
+    if (front >= 0) {
+      *surface = prep_.pieces[static_cast<std::size_t>(active_[static_cast<std::size_t>(front)].piece)].surface;
+      *footprint = std::sqrt(QuadArea(q));  // ShadeArea's, with one sample
+      return false;
+    }
+    *value = Exact(q);
+    return true;
+  }
+
   // Centre shading of a pixel inside a tile that Classify found covered by one group.
   Vec3d TilePixel(int front, bool group_of_one, const Vec2d& c, double footprint) {
     const int member = group_of_one ? active_[static_cast<std::size_t>(front)].piece : MemberAt(front, c);
@@ -676,6 +703,15 @@ void RasterizeTileRows(const Prepared& prep, bool color, int first, int stride, 
   PixelIntegrator integrator(prep, false);
   TileInterpolator interpolator(prep, color);
   std::array<Vec3d, kTileSize * kTileSize> tile_values;
+  // The pixels of an edge tile that one surface covers, waiting to be shaded in batches.
+  struct CoveredPixel {
+    int i = 0, j = 0, surface = -1;
+    double x = 0, y = 0, footprint = 0;
+  };
+  std::array<CoveredPixel, kTileSize * kTileSize> covered_px;
+  std::array<double, kTileSize * kTileSize> batch_x, batch_y, batch_f;
+  std::array<int, kTileSize * kTileSize> batch_at;
+  std::array<float, kTileSize * kTileSize> batch_luma;
   auto store = [&](int i, int j, const Vec3d& rgb) {
     if (color) {
       out.at<cv::Vec3f>(j, i) =
@@ -742,10 +778,53 @@ void RasterizeTileRows(const Prepared& prep, bool color, int first, int stride, 
         }
         continue;
       }
+      // An edge crosses the tile: each pixel integrated exactly where it must be; the pixels that one
+      // surface covers (most of them) are shaded afterwards, a surface's pixels in one batch.
+      int n_covered = 0;
       for (int j = j0; j < j1; ++j) {
         for (int i = i0; i < i1; ++i) {
           const Vec2d q[4] = {g.Corner(i, j), g.Corner(i + 1, j), g.Corner(i + 1, j + 1), g.Corner(i, j + 1)};
-          store(i, j, integrator.Pixel(q, cand, n_cand, radius, 1));
+          Vec3d value;
+          Vec2d c;
+          CoveredPixel& cp = covered_px[static_cast<std::size_t>(n_covered)];
+          if (integrator.PixelOrCovered(q, cand, n_cand, radius, &value, &cp.surface, &c, &cp.footprint)) {
+            store(i, j, value);
+          } else {
+            cp.x = c.x();
+            cp.y = c.y();
+            cp.i = i;
+            cp.j = j;
+            ++n_covered;
+          }
+        }
+      }
+      for (int k = 0; k < n_covered; ++k) {
+        const int surface = covered_px[static_cast<std::size_t>(k)].surface;
+        if (surface < 0) continue;  // already shaded with an earlier surface's batch
+        int n = 0;
+        for (int m = k; m < n_covered; ++m) {
+          CoveredPixel& cp = covered_px[static_cast<std::size_t>(m)];
+          if (cp.surface != surface) continue;
+          batch_x[static_cast<std::size_t>(n)] = cp.x;
+          batch_y[static_cast<std::size_t>(n)] = cp.y;
+          batch_f[static_cast<std::size_t>(n)] = cp.footprint;
+          batch_at[static_cast<std::size_t>(n)] = m;
+          ++n;
+          cp.surface = -1;
+        }
+        const Surface& fs = prep.surfaces[static_cast<std::size_t>(surface)];
+        if (color) {
+          ShadeBatch(prep, fs, batch_x.data(), batch_y.data(), batch_f.data(), n, tile_values.data());
+        } else {
+          ShadeBatchLuma(prep, fs, batch_x.data(), batch_y.data(), batch_f.data(), n, batch_luma.data());
+        }
+        for (int b = 0; b < n; ++b) {
+          const CoveredPixel& cp = covered_px[static_cast<std::size_t>(batch_at[static_cast<std::size_t>(b)])];
+          if (color) {
+            store(cp.i, cp.j, tile_values[static_cast<std::size_t>(b)]);
+          } else {
+            out.at<float>(cp.j, cp.i) = batch_luma[static_cast<std::size_t>(b)];  // store's float(Luma(.))
+          }
         }
       }
     }
