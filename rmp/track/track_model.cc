@@ -12,32 +12,9 @@ namespace {
 
 bool FinitePoint(const Vec2d& p) { return std::isfinite(p.x()) && std::isfinite(p.y()); }
 
-// Inside the polygon (even-odd rule) and at least `margin` from its outline. The parity test comes
-// first: most points asked about lie outside, and they need no distances.
-bool InsidePolygonWithMargin(const std::vector<Vec2d>& poly, const Vec2d& p, double margin) {
-  bool inside = false;
-  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-    const Vec2d& a = poly[i];
-    const Vec2d& b = poly[j];
-    if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) {
-      inside = !inside;
-    }
-  }
-  if (!inside) return false;
-  const double margin2 = margin * margin;
-  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-    const Vec2d& a = poly[i];
-    const Vec2d d = poly[j] - a;
-    const double l2 = d.squaredNorm();
-    const double t = l2 < 1e-18 ? 0.0 : std::clamp((p - a).dot(d) / l2, 0.0, 1.0);
-    if ((a + t * d - p).squaredNorm() < margin2) return false;
-  }
-  return true;
-}
-
-// A footprint polygon prepared for many InsidePolygonWithMargin questions: its bounding box turns
-// away most points outside cheaply, and an edge whose line lies at least `margin` from the point
-// needs no clamped distance.
+// A footprint polygon prepared for many questions "inside it (even-odd rule) and at least `margin`
+// from its outline?": its bounding box turns away most points outside cheaply, the parity test comes
+// before any distance, and an edge whose line lies beyond `margin` needs no clamped distance.
 class FootprintTest {
  public:
   explicit FootprintTest(const std::vector<Vec2d>& poly) : poly_(poly) {
@@ -51,7 +28,6 @@ class FootprintTest {
       edges_.push_back({d, l2 < 1e-18 ? 0.0 : 1.0 / l2, l2 < 1e-18 ? 0.0 : 1.0 / std::sqrt(l2)});
     }
   }
-  // InsidePolygonWithMargin(poly, p, margin), the same answer.
   bool Contains(const Vec2d& p, double margin) const {
     if (poly_.size() < 3) return false;
     if (!(p.x() >= lo_.x() && p.x() <= hi_.x() && p.y() >= lo_.y() && p.y() <= hi_.y())) return false;
@@ -181,7 +157,7 @@ std::vector<Vec2d> TrackModel::Densify(const std::vector<Vec2d>& pts) const {
 bool TrackModel::InView(const std::vector<std::vector<Vec2d>>& footprints_odom, const Vec2d& p) const {
   if (footprints_odom.empty()) return false;
   for (const auto& fp : footprints_odom) {
-    if (fp.size() < 3 || !InsidePolygonWithMargin(fp, p, options_.footprint_margin_m)) return false;
+    if (!FootprintTest(fp).Contains(p, options_.footprint_margin_m)) return false;
   }
   return true;
 }
