@@ -214,17 +214,4 @@ double DistanceToPolyline(const std::vector<Vec2d>& polyline, const Vec2d& p) {
   return best;
 }
 
-bool PointInPolygon(const std::vector<Vec2d>& polygon, const Vec2d& p) {
-  bool inside = false;
-  for (std::size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
-    const Vec2d& a = polygon[i];
-    const Vec2d& b = polygon[j];
-    if ((a.y() > p.y()) != (b.y() > p.y()) &&
-        p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) {
-      inside = !inside;
-    }
-  }
-  return inside;
-}
-
 }  // namespace idi::rmp

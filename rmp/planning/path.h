@@ -7,6 +7,7 @@
 
 #include <vector>
 
+#include "rmp/track/polygon.h"
 #include "rmp/track/pose2.h"
 #include "shared/geometry/rigid3.h"
 
@@ -78,8 +79,5 @@ double PolylineLength(const std::vector<Vec2d>& points);
 
 // Distance from p to the closest point of a polyline (infinite when it is empty).
 double DistanceToPolyline(const std::vector<Vec2d>& polyline, const Vec2d& p);
-
-// True when p lies inside the polygon (even-odd rule).
-bool PointInPolygon(const std::vector<Vec2d>& polygon, const Vec2d& p);
 
 }  // namespace idi::rmp

@@ -79,11 +79,5 @@ TEST(SimplifyPolylineTest, KeepsCornersDropsCollinearPoints) {
   EXPECT_NEAR(PolylineLength(simple), 2.0, 1e-12);
 }
 
-TEST(PointInPolygonTest, Square) {
-  const std::vector<Vec2d> sq = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
-  EXPECT_TRUE(PointInPolygon(sq, {0.5, 0.5}));
-  EXPECT_FALSE(PointInPolygon(sq, {1.5, 0.5}));
-}
-
 }  // namespace
 }  // namespace idi::rmp

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "rmp/track/polygon.h"
 #include "rmp/track/pose2.h"
 
 namespace idi::rmp {
@@ -9,15 +10,7 @@ namespace {
 
 bool InsideAll(const std::vector<std::vector<Vec2d>>& polys, const Vec2d& p) {
   for (const auto& poly : polys) {
-    bool inside = false;
-    for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-      const Vec2d& a = poly[i];
-      const Vec2d& b = poly[j];
-      if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) {
-        inside = !inside;
-      }
-    }
-    if (!inside) return false;
+    if (!PointInPolygon(poly, p)) return false;
   }
   return !polys.empty();
 }

@@ -5,6 +5,7 @@
 #include <limits>
 #include <string>
 
+#include "rmp/track/polygon.h"
 #include "shared/util/units.h"
 
 namespace idi::rmp {
@@ -29,17 +30,8 @@ class FootprintTest {
     }
   }
   bool Contains(const Vec2d& p, double margin) const {
-    if (poly_.size() < 3) return false;
     if (!(p.x() >= lo_.x() && p.x() <= hi_.x() && p.y() >= lo_.y() && p.y() <= hi_.y())) return false;
-    bool inside = false;
-    for (std::size_t i = 0, j = poly_.size() - 1; i < poly_.size(); j = i++) {
-      const Vec2d& a = poly_[i];
-      const Vec2d& b = poly_[j];
-      if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) {
-        inside = !inside;
-      }
-    }
-    if (!inside) return false;
+    if (!PointInPolygon(poly_, p)) return false;
     const double margin2 = margin * margin;
     for (std::size_t i = 0; i < poly_.size(); ++i) {
       const Edge& e = edges_[i];
