@@ -132,11 +132,11 @@ void ControlLoop::PerceivePair(const hal::Image& left, const hal::Image& right, 
     return;
   }
   ++stats_.perceptions;
-  stats_.perception_ms.push_back(result->stats.total_ms);
+  stats_.perception_ms.Add(result->stats.total_ms);
   const Pose2 at_exposure = OdometryAt(exposure);
   const auto update_start = std::chrono::steady_clock::now();
   auto upd = track_.Update(result->observation, at_exposure);
-  stats_.track_update_ms.push_back(
+  stats_.track_update_ms.Add(
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - update_start).count());
   if (!upd.ok()) {
     spdlog::warn("track update refused: {}", upd.status().ToString());
@@ -269,7 +269,7 @@ Result<TickRecord> ControlLoop::Step() {
       latest_[latest_[0]->timestamp_ns < latest_[1]->timestamp_ns ? 0 : 1].reset();
     }
   }
-  if (rec.perceived) stats_.frame_to_command_ms.push_back(static_cast<double>(t - rec.perception_exposure_ns) * 1e-6);
+  if (rec.perceived) stats_.frame_to_command_ms.Add(static_cast<double>(t - rec.perception_exposure_ns) * 1e-6);
 
   track_.UpdateProgress(odom);
   PlanOutput plan;

@@ -125,10 +125,10 @@ Result<RunReport> RunHardware(const HardwareRunOptions& o) {
   const ControlLoopStats& st = loop.stats();
   report.completed = loop.finished();
   report.frames = st.perceptions;
-  report.perception_ms_median = Percentile(st.perception_ms, 0.5);
-  report.perception_ms_p99 = Percentile(st.perception_ms, 0.99);
-  report.frame_to_command_ms_median = Percentile(st.frame_to_command_ms, 0.5);
-  report.frame_to_command_ms_p99 = Percentile(st.frame_to_command_ms, 0.99);
+  report.perception_ms_median = st.perception_ms.Percentile(0.5);
+  report.perception_ms_p99 = st.perception_ms.Percentile(0.99);
+  report.frame_to_command_ms_median = st.frame_to_command_ms.Percentile(0.5);
+  report.frame_to_command_ms_p99 = st.frame_to_command_ms.Percentile(0.99);
   report.commands = driver->health().counters.frames_sent;
   report.commands_nonzero = driver->health().counters.motion_frames;
   report.distance_m = driver->odometry().pose().distance_m;

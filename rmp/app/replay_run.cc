@@ -125,10 +125,10 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   RunReport& r = result.report;
   const ControlLoopStats& st = loop.stats();
   r.frames = st.perceptions;
-  r.perception_ms_median = Percentile(st.perception_ms, 0.5);
-  r.perception_ms_p99 = Percentile(st.perception_ms, 0.99);
-  r.frame_to_command_ms_median = Percentile(st.frame_to_command_ms, 0.5);
-  r.frame_to_command_ms_p99 = Percentile(st.frame_to_command_ms, 0.99);
+  r.perception_ms_median = st.perception_ms.Percentile(0.5);
+  r.perception_ms_p99 = st.perception_ms.Percentile(0.99);
+  r.frame_to_command_ms_median = st.frame_to_command_ms.Percentile(0.5);
+  r.frame_to_command_ms_p99 = st.frame_to_command_ms.Percentile(0.99);
   r.frozen_frames = st.frozen_frames;
   r.dropped_frames = st.dropped_frames;
   r.unpaired_frames = st.unpaired_frames;

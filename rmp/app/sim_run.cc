@@ -15,13 +15,6 @@
 
 namespace idi::rmp {
 
-double Percentile(std::vector<double> values, double q) {
-  if (values.empty()) return 0.0;
-  std::sort(values.begin(), values.end());
-  const std::size_t rank = static_cast<std::size_t>(std::ceil(q * static_cast<double>(values.size())));
-  return values[std::clamp<std::size_t>(rank, 1, values.size()) - 1];
-}
-
 nlohmann::json RunReport::ToJson() const {
   nlohmann::json j;
   j["completed"] = completed;
@@ -73,10 +66,10 @@ nlohmann::json RigJson(const StereoRig& rig) {
 void FillFromLoop(const ControlLoop& loop, RunReport* r) {
   const ControlLoopStats& st = loop.stats();
   r->frames = st.perceptions;
-  r->perception_ms_median = Percentile(st.perception_ms, 0.5);
-  r->perception_ms_p99 = Percentile(st.perception_ms, 0.99);
-  r->frame_to_command_ms_median = Percentile(st.frame_to_command_ms, 0.5);
-  r->frame_to_command_ms_p99 = Percentile(st.frame_to_command_ms, 0.99);
+  r->perception_ms_median = st.perception_ms.Percentile(0.5);
+  r->perception_ms_p99 = st.perception_ms.Percentile(0.99);
+  r->frame_to_command_ms_median = st.frame_to_command_ms.Percentile(0.5);
+  r->frame_to_command_ms_p99 = st.frame_to_command_ms.Percentile(0.99);
   r->frozen_frames = st.frozen_frames;
   r->dropped_frames = st.dropped_frames;
   r->unpaired_frames = st.unpaired_frames;

@@ -36,9 +36,6 @@ struct RunReport {
   nlohmann::json ToJson() const;
 };
 
-// Median and 99th percentile (nearest rank); 0 for an empty list.
-double Percentile(std::vector<double> values, double q);
-
 struct SimRunOptions {
   RmpConfig config = DefaultRmpConfig();
   std::string config_text;  // the configuration file's text (saved in the drive log for replay)

@@ -125,9 +125,8 @@ int Main(int argc, char** argv) {
     factors.push_back(sim_s / wall);
     fmt::print("| {} | {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |\n", r + 1, res->report.completed ? "yes" : "no",
                res->report.frames, sim_s, wall, cpu, sim_s / wall);
-    double perception_s = 0, track_s = 0;
-    for (const double ms : res->stats.perception_ms) perception_s += ms * 1e-3;
-    for (const double ms : res->stats.track_update_ms) track_s += ms * 1e-3;
+    const double perception_s = res->stats.perception_ms.sum() * 1e-3;
+    const double track_s = res->stats.track_update_ms.sum() * 1e-3;
     const double rest = wall - res->render_wall_s - perception_s - track_s;
     split.push_back(
         fmt::format("| {} | {:.2f} ({:.0f} %) | {:.2f} ({:.0f} %) | {:.2f} ({:.0f} %) | {:.2f} ({:.0f} %) |",
