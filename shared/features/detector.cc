@@ -112,6 +112,9 @@ Status IdiOptions::Check() const {
   IDI_RETURN_IF_ERROR(NonNegative(merge_radius_px, "idi.merge_radius_px"));
   IDI_RETURN_IF_ERROR(NonNegative(max_point_sigma_px, "idi.max_point_sigma_px"));
   IDI_RETURN_IF_ERROR(NonNegative(image_margin_px, "idi.image_margin_px"));
+  IDI_RETURN_IF_ERROR(InRange(max_gap_px, 0.0, 100.0, "idi.max_gap_px"));
+  IDI_RETURN_IF_ERROR(InRange(gap_min_strength, 0.0, 1.0, "idi.gap_min_strength"));
+  IDI_RETURN_IF_ERROR(NonNegative(gap_max_contrast, "idi.gap_max_contrast"));
   return Status::Ok();
 }
 
@@ -461,7 +464,16 @@ Result<FeatureResult> FeatureDetector::Detect(const cv::Mat& image) {
     result.lines.push_back(std::move(f.line));
   }
   const auto t_empl = std::chrono::steady_clock::now();
-  result.points = FindIdiPoints(&result.lines, m.options.idi, image.cols, image.rows);
+  GapTest gap;
+  if (m.options.idi.max_gap_px > 0) {
+    gap = [&m](const EmplLine& line, const Vec2d& end, const Vec2d& x) {
+      if (!(line.contrast <= m.options.idi.gap_max_contrast * m.gradients.level_scale)) return false;
+      // The extension bridges the corner's blur: the gap is checked up to where it begins.
+      return EdgeContinues(
+          m.gradients, m.geometry, line, end, x, (line.extension1 - line.p1).norm(), m.options.idi.gap_min_strength);
+    };
+  }
+  result.points = FindIdiPoints(&result.lines, m.options.idi, image.cols, image.rows, gap);
   const auto t_points = std::chrono::steady_clock::now();
   if (m.options.curves.enabled) {
     result.curves = FindCurves(m.gradients, m.edges, m.geometry, result.lines, m.options.curves, &m.curve_mask);

@@ -209,6 +209,22 @@ TEST(DetectorTest, BadInputAndBadOptionsAreRejected) {
   EXPECT_NE(o.Check().message().find("idi.max_point_sigma_px"), std::string::npos) << o.Check().message();
   o.idi.max_point_sigma_px = 0;
   EXPECT_TRUE(o.Check().ok()) << o.Check().message();
+  for (double* v : {&o.idi.max_gap_px, &o.idi.gap_min_strength, &o.idi.gap_max_contrast}) {
+    const double keep = *v;
+    const std::string name = v == &o.idi.max_gap_px         ? "idi.max_gap_px"
+                             : v == &o.idi.gap_min_strength ? "idi.gap_min_strength"
+                                                            : "idi.gap_max_contrast";
+    for (const double bad : {std::nan(""), -1.0}) {
+      *v = bad;
+      EXPECT_NE(o.Check().message().find(name), std::string::npos) << o.Check().message();
+    }
+    *v = keep;
+  }
+  o.idi.gap_min_strength = 1.5;  // a fraction
+  EXPECT_NE(o.Check().message().find("idi.gap_min_strength"), std::string::npos) << o.Check().message();
+  o.idi.gap_min_strength = 0.9;
+  o.idi.max_gap_px = 0;  // off
+  EXPECT_TRUE(o.Check().ok()) << o.Check().message();
   CameraModel cam;
   cam.params[kK1] = 0.1;
   auto det = FeatureDetector::Create(FeatureOptions{}, cam);

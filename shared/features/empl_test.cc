@@ -482,9 +482,12 @@ TEST(EmplTest, AnEdgeWhoseContrastFadesStillReachesItsCorner) {
 // level, the strong stretch raised the threshold over the next threshold_window_px of the weak edge,
 // whose confirmed segment then stopped about 10 px short of the junction, beyond its 5 px extension; the
 // median of the stations' band means (EmplOptions::threshold_median) does not see a short strong stretch.
+// (The thresholds are compared without the gap test of IdiOptions::max_gap_px, which bridges such a gap
+// on its own: the next test.)
 TEST(EmplTest, AWeakEdgeRunningOnFromAStrongOneReachesTheJunction) {
   FeatureOptions median, mean;
   mean.empl.threshold_median = false;
+  median.idi.max_gap_px = mean.idi.max_gap_px = 0;
   ASSERT_TRUE(median.empl.threshold_median);
   const Vec2d corner(40.4, 40.3);
   // A bright plate 9 px high from the corner to the right; below the corner's row, the face right of the
@@ -506,6 +509,71 @@ TEST(EmplTest, AWeakEdgeRunningOnFromAStrongOneReachesTheJunction) {
   // Measured: 20 and 0 of 20.
   EXPECT_GE(found[0], 18);
   EXPECT_LE(found[1], found[0] - 10);
+}
+
+// The same weak edge with the mean as the local level: its segment stops about 10 px short of the
+// junction, and the gap test (IdiOptions::max_gap_px) finds the edge's gradient going on across the gap
+// and keeps the junction; without it the junction is lost.
+TEST(EmplTest, AGapThatCarriesTheEdgeIsBridged) {
+  FeatureOptions gap, no_gap;
+  gap.empl.threshold_median = no_gap.empl.threshold_median = false;
+  no_gap.idi.max_gap_px = 0;
+  ASSERT_GT(gap.idi.max_gap_px, 0);
+  const Vec2d corner(40.4, 40.3);
+  const auto level = [&](const Vec2d& q) {
+    if (q.y() < corner.y()) return q.y() >= corner.y() - 9 && q.x() >= corner.x() && q.x() < 110 ? 180.0 : 80.0;
+    return q.x() >= corner.x() ? 92.0 : 80.0;
+  };
+  const cv::Mat clean = analytic::AreaMeanImage(120, 100, level, 1.0);
+  constexpr int kImages = 20;
+  const int found[2] = {CornerFoundIn(clean, 1.5, 1000, kImages, gap, corner, 1.0),
+                        CornerFoundIn(clean, 1.5, 1000, kImages, no_gap, corner, 1.0)};
+  std::printf(
+      "junction across a gap found in %d of %d images with the gap test, %d without\n", found[0], kImages, found[1]);
+  // Measured: 19 and 0 of 20.
+  EXPECT_GE(found[0], 17);
+  EXPECT_LE(found[1], 3);
+}
+
+// A faint edge that really ends 10 px before a strong one (at a faint L-corner): nothing in the gap
+// carries it, so its line does not reach the strong edge, and no point is made where the two lines
+// cross. (With extensions long enough to reach it, and every point beyond the segment's end kept, the
+// point is made: the scene can show the failure.)
+TEST(EmplTest, AGapWithoutTheEdgeIsNotBridged) {
+  const Vec2d cross(50.4, 30.3);
+  const auto level = [&](const Vec2d& q) {
+    if (q.y() < cross.y()) return 60.0;  // the strong edge: y = 30.3, 120 DN
+    if (q.y() < cross.y() + 10) return 180.0;
+    return q.x() >= cross.x() ? 204.0 : 180.0;  // the faint edge x = 50.4 from y = 40.3 down, 24 DN
+  };
+  const cv::Mat clean = analytic::AreaMeanImage(100, 100, level, 1.0);
+  FeatureOptions long_extensions;
+  long_extensions.idi.max_gap_px = 0;
+  long_extensions.empl.min_extension_px = 14;
+  long_extensions.idi.first_point_beyond_end = false;
+  int lines_seen = 0, crossings = 0, crossings_long = 0;
+  for (int k = 0; k < 20; ++k) {
+    const cv::Mat image = analytic::Quantize(clean, 1.5, 2000 + static_cast<std::uint64_t>(k));
+    const auto r = DetectFeatures(image, FeatureOptions{});
+    const auto r_long = DetectFeatures(image, long_extensions);
+    ASSERT_TRUE(r.ok() && r_long.ok());
+    bool seen = false;
+    for (const EmplLine& l : r->lines) {
+      seen = seen || (std::abs(l.normal.x()) > 0.99 && std::abs(l.SignedDistance(Vec2d(cross.x(), 70))) < 1);
+    }
+    lines_seen += seen;
+    for (const IdiPoint& p : r->points) crossings += (p.xy - cross).norm() < 3;
+    for (const IdiPoint& p : r_long->points) crossings_long += (p.xy - cross).norm() < 3;
+  }
+  std::printf(
+      "faint edge found in %d of 20 images; a point where it would cross the strong one in %d (%d with "
+      "14 px extensions)\n",
+      lines_seen,
+      crossings,
+      crossings_long);
+  EXPECT_GE(lines_seen, 18);
+  EXPECT_EQ(crossings, 0);
+  EXPECT_GE(crossings_long, 15);
 }
 
 // An edge that steps between two levels 3 px apart every 20 px is not one straight edge. Fitted as one,

@@ -222,6 +222,17 @@ struct IdiOptions {
   // --draws; over 3 draws the spurious points are 16, 10, 9 and 12). Sections B and C are unchanged.
   // 0 keeps all.
   double max_point_sigma_px = 1.0;
+  // An intersection beyond a line's unconfirmed extension, but no more than this (px) beyond its
+  // confirmed segment, still counts when the image between the segment's end and the intersection
+  // carries the line's edge (see EdgeContinues): near a junction with a stronger edge the adaptive
+  // threshold stops a faint edge's segment short although its gradient goes on. 0 = extensions only.
+  double max_gap_px = 15.0;
+  // ... the edge carried there: in every stretch of the gap, the gradient along the line's normal, with
+  // its direction within 30 deg of it, is at least this fraction of its strength along the segment's end.
+  double gap_min_strength = 0.9;
+  // ... and only for lines of at most this contrast (8-bit grey levels): a strong edge's segment ends
+  // where its edge does.
+  double gap_max_contrast = 30.0;
 
   Status Check() const;
 };

@@ -73,7 +73,78 @@ double DistanceBeyondSegment(const EmplLine& line, const Eigen::Vector2d& x) {
   return std::max({0.0, -t, t - len});
 }
 
-std::vector<IdiPoint> FindIdiPoints(std::vector<EmplLine>* lines_io, const IdiOptions& options, int width, int height) {
+namespace {
+
+// Bilinear sample of a CV_32F image; false outside [0, cols - 1] x [0, rows - 1].
+bool Sample(const cv::Mat& img, const Eigen::Vector2d& p, double* v) {
+  if (!(p.x() >= 0 && p.y() >= 0 && p.x() <= img.cols - 1.001 && p.y() <= img.rows - 1.001)) return false;
+  const int x0 = static_cast<int>(p.x()), y0 = static_cast<int>(p.y());
+  const double fx = p.x() - x0, fy = p.y() - y0;
+  const float* r0 = img.ptr<float>(y0);
+  const float* r1 = img.ptr<float>(y0 + 1);
+  *v = (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
+  return true;
+}
+
+}  // namespace
+
+bool EdgeContinues(const GradientImages& gradients,
+                   const PixelGeometry& geometry,
+                   const EmplLine& line,
+                   const Eigen::Vector2d& end,
+                   const Eigen::Vector2d& x,
+                   double skip_px,
+                   double min_strength) {
+  const Eigen::Vector2d to_x = x - end;
+  const double gap = to_x.norm() - skip_px;
+  if (!(gap > 0) || !(line.length_px > 0)) return false;
+  const Eigen::Vector2d u = to_x.normalized();
+  const double sign_n = line.normal.dot(Eigen::Vector2d(-u.y(), u.x())) >= 0 ? 1.0 : -1.0;
+  const double cos_max = std::cos(30.0 * 3.14159265358979323846 / 180.0);
+  // The gradient along the line's normal at fit position q: the normal taken in the image (lens
+  // distortion turns it), 0 when the gradient points more than 30 deg away from it.
+  auto across = [&](const Eigen::Vector2d& q, double* g) {
+    const Eigen::Vector2d pix = geometry.ToPixel(q);
+    const Eigen::Vector2d t = geometry.ToPixel(q + 0.5 * u) - geometry.ToPixel(q - 0.5 * u);
+    const Eigen::Vector2d n = sign_n * Eigen::Vector2d(-t.y(), t.x()).normalized();
+    double gx, gy;
+    if (!Sample(gradients.gx, pix, &gx) || !Sample(gradients.gy, pix, &gy)) return false;
+    const double along = gx * n.x() + gy * n.y();
+    *g = std::abs(along) >= cos_max * std::hypot(gx, gy) ? along : 0.0;
+    return true;
+  };
+  // The edge's strength next to the end, on the segment.
+  const double reach = std::min(10.0, line.length_px);
+  double ref = 0;
+  int n_ref = 0;
+  for (double t = 0.5; t <= reach; t += 0.5) {
+    double g;
+    if (!across(end - t * u, &g)) continue;
+    ref += line.alternating ? std::abs(g) : g;
+    ++n_ref;
+  }
+  if (n_ref == 0) return false;
+  ref /= n_ref;
+  if (!(std::abs(ref) > 2 * gradients.gradient_noise)) return false;
+  const double sign = ref > 0 ? 1.0 : -1.0;
+  const int pieces = static_cast<int>(std::ceil(gap / 3.0));
+  const double piece = gap / pieces;
+  for (int k = 0; k < pieces; ++k) {
+    double sum = 0;
+    int count = 0;
+    for (double t = k * piece; t <= (k + 1) * piece + 1e-9; t += 0.5) {
+      double g;
+      if (!across(end + t * u, &g)) return false;
+      sum += line.alternating ? std::abs(g) : sign * g;
+      ++count;
+    }
+    if (!(sum / count >= min_strength * std::abs(ref))) return false;
+  }
+  return true;
+}
+
+std::vector<IdiPoint> FindIdiPoints(
+    std::vector<EmplLine>* lines_io, const IdiOptions& options, int width, int height, const GapTest& gap) {
   std::vector<EmplLine>& lines = *lines_io;
   const double min_sin = std::sin(options.min_angle_deg * 3.14159265358979323846 / 180.0);
   struct Candidate {
@@ -87,6 +158,14 @@ std::vector<IdiPoint> FindIdiPoints(std::vector<EmplLine>* lines_io, const IdiOp
     ext[i] = (lines[i].extension1 - lines[i].p1).norm();
     lines[i].point_ids.clear();
   }
+  // Whether line i reaches x: within its extension, or across a gap that carries its edge.
+  auto reaches = [&](std::size_t i, const Eigen::Vector2d& x) {
+    const double beyond = DistanceBeyondSegment(lines[i], x);
+    if (beyond <= ext[i]) return true;
+    if (!gap || beyond > options.max_gap_px) return false;
+    const EmplLine& l = lines[i];
+    return gap(l, (x - l.p1).squaredNorm() < (x - l.p2).squaredNorm() ? l.p1 : l.p2, x);
+  };
   const double m = options.image_margin_px;
   for (std::size_t i = 0; i < n; ++i) {
     for (std::size_t j = i + 1; j < n; ++j) {
@@ -101,7 +180,7 @@ std::vector<IdiPoint> FindIdiPoints(std::vector<EmplLine>* lines_io, const IdiOp
       if (x.x() < -0.5 - m || x.y() < -0.5 - m || x.x() > width - 0.5 + m || x.y() > height - 0.5 + m) {
         continue;
       }
-      if (DistanceBeyondSegment(a, x) > ext[i] || DistanceBeyondSegment(b, x) > ext[j]) {
+      if (!reaches(i, x) || !reaches(j, x)) {
         continue;
       }
       cand.push_back({x, static_cast<int>(i), static_cast<int>(j)});

@@ -1,9 +1,12 @@
 // IDI points (§7.10): intersections of EMPL lines near their segments, with topology and covariance.
 #pragma once
 
+#include <functional>
 #include <vector>
 
 #include "shared/features/features.h"
+#include "shared/features/gradient.h"
+#include "shared/features/pixel_geometry.h"
 
 namespace idi {
 
@@ -24,7 +27,27 @@ bool IntersectLinesWeighted(const std::vector<const EmplLine*>& lines, const Eig
 // with first_point_beyond_end, a line stays only in the nearest point beyond each end of its segment
 // (points left with fewer than two lines go, and so do those that become too imprecise). Sets each
 // line's point_ids (ordered from p1 to p2) and returns the points with ids 0..n-1.
-std::vector<IdiPoint> FindIdiPoints(std::vector<EmplLine>* lines, const IdiOptions& options, int width, int height);
+//
+// With `gap`, an intersection up to options.max_gap_px beyond a line's confirmed segment but past its
+// extension still counts for that line when gap(line, end, x) says the image between the segment's
+// nearer end and x carries the line's edge.
+using GapTest = std::function<bool(const EmplLine& line, const Eigen::Vector2d& end, const Eigen::Vector2d& x)>;
+std::vector<IdiPoint> FindIdiPoints(
+    std::vector<EmplLine>* lines, const IdiOptions& options, int width, int height, const GapTest& gap = nullptr);
+
+// Whether the gradient images carry `line`'s edge on the line from `end` (an end of its confirmed
+// segment) to `x` (beyond that end), leaving out the last `skip_px` before x (where the edge of the
+// line it meets there is within reach of the smoothing): in every stretch of at most 3 px, the mean
+// gradient along the line's normal (0 where the gradient's direction is more than 30 deg off the normal,
+// and with the sign of the edge's contrast next to `end`) is at least `min_strength` times its mean
+// over the 10 px of the segment next to `end`. Positions are in fit coordinates (`geometry`).
+bool EdgeContinues(const GradientImages& gradients,
+                   const PixelGeometry& geometry,
+                   const EmplLine& line,
+                   const Eigen::Vector2d& end,
+                   const Eigen::Vector2d& x,
+                   double skip_px,
+                   double min_strength);
 
 // Whether `point`'s own standard deviation, sqrt(trace) of its covariance, is within
 // options.max_point_sigma_px (always, when that is 0): points beyond it are not reported.

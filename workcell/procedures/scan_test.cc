@@ -178,11 +178,13 @@ TEST(ScanTest, RobotTwoTakesTheBestGraspItCanReach) {
 }
 
 // Scenes where the four stations' model lacks a face the grasp needs (the planner finds no grasp on it; on the true
-// bracket it finds 8) depend on the image noise's draw: with the sensor's generator as it is, seed 77's brackets 5,
-// 9 and 33; with it seeded otherwise (trials), 21, 32 and 33, or 21 and 29 (there 33 took the second round and still
-// fitted no grasp). The test takes the first of these candidates that needs the second round, and fails when none
-// does. There the scan must take the second round of stations, rebuild the model from all 14 views and pick the
-// bracket. Without the second round the pick fails; a scan without a pick still returns the model, with no grasp.
+// bracket it finds 8) depend on the image noise's draw and on the front end: with the sensor's generator as it is,
+// seed 77's brackets 5, 9 and 33 before the IDI points' gap test (IdiOptions::max_gap_px), 5 alone with it (its faint
+// corners complete 9's and 33's models from the first round); with it seeded otherwise (trials), 21, 32 and 33, or 21
+// and 29 (there 33 took the second round and still fitted no grasp). The test takes the first of these candidates that
+// needs the second round, and fails when none does. There the scan must take the second round of stations, rebuild the
+// model from all 14 views and pick the bracket. Without the second round the pick fails; a scan without a pick still
+// returns the model, with no grasp.
 TEST(ScanTest, SecondRoundOfStationsWhenNoGraspFitsTheModel) {
   ScanTwinOptions to;
   to.seed = 77;
@@ -213,11 +215,15 @@ TEST(ScanTest, SecondRoundOfStationsWhenNoGraspFitsTheModel) {
     // --scenes 45, the scenes' worst corners have median 0.25 mm and 90th percentile 0.85 mm; scenes 5, 9
     // and 33 (second round) 0.20-0.23 mm, and scene 33 0.80 mm under another noise draw (a trial).
     EXPECT_LT(t.max_vertex_error_mm, 1.0);
-    // The extra views match the object's corners as well as the first round's: the pairs at no true corner
-    // are background past the table, not false matches.
+    // The extra views match the object's corners about as well as the first round's: the pairs at no true
+    // corner are mostly background past the table. The precision counts view pairs, so one wrong track seen in
+    // n views weighs n (n - 1) / 2 false pairs: per scene it moves in steps. Measured on the second round's 14
+    // views: scene 9 100 % (426 pairs) without the gap test; scene 5 97.99 % (6 false of 299) without it,
+    // 96.52 % (11 of 316) with it. Over 45 bracket scenes (scan_study --oracle --seed 77 --object bracket
+    // --scenes 45) 99.74 % without and 99.59 % with it.
     const CorrespondenceTruth m = twin.EvaluateCorrespondence(*r);
     ASSERT_TRUE(m.scored);
-    EXPECT_GE(m.precision(), 0.99) << m.false_matches << " false of " << m.true_matches + m.false_matches;
+    EXPECT_GE(m.precision(), 0.95) << m.false_matches << " false of " << m.true_matches + m.false_matches;
     o.extra_azimuths_deg.clear();
     ScanTwin again(to);
     ScanDevices d2 = again.Devices();
