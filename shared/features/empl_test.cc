@@ -477,6 +477,18 @@ TEST(EmplTest, AnEdgeWhoseContrastFadesStillReachesItsCorner) {
   EXPECT_GE(found, 18);
 }
 
+// A bright plate 9 px high from kWeakEdgeCorner to the right; below the corner's row, the face right of
+// the weak edge is 12 grey levels above the one left of it.
+const Vec2d kWeakEdgeCorner(40.4, 40.3);
+cv::Mat WeakEdgeRunningOnFromAStrongOne() {
+  const Vec2d corner = kWeakEdgeCorner;
+  const auto level = [&](const Vec2d& q) {
+    if (q.y() < corner.y()) return q.y() >= corner.y() - 9 && q.x() >= corner.x() && q.x() < 110 ? 180.0 : 80.0;
+    return q.x() >= corner.x() ? 92.0 : 80.0;
+  };
+  return analytic::AreaMeanImage(120, 100, level, 1.0);
+}
+
 // A weak edge can run on from a strong collinear one: a plate's end, too short to be a line of its
 // own, continues as the faint edge between two faces below it. With eq. 7.29's mean as the local
 // level, the strong stretch raised the threshold over the next threshold_window_px of the weak edge,
@@ -489,14 +501,8 @@ TEST(EmplTest, AWeakEdgeRunningOnFromAStrongOneReachesTheJunction) {
   mean.empl.threshold_median = false;
   median.idi.max_gap_px = mean.idi.max_gap_px = 0;
   ASSERT_TRUE(median.empl.threshold_median);
-  const Vec2d corner(40.4, 40.3);
-  // A bright plate 9 px high from the corner to the right; below the corner's row, the face right of the
-  // weak edge is 12 grey levels above the one left of it.
-  const auto level = [&](const Vec2d& q) {
-    if (q.y() < corner.y()) return q.y() >= corner.y() - 9 && q.x() >= corner.x() && q.x() < 110 ? 180.0 : 80.0;
-    return q.x() >= corner.x() ? 92.0 : 80.0;
-  };
-  const cv::Mat clean = analytic::AreaMeanImage(120, 100, level, 1.0);
+  const Vec2d corner = kWeakEdgeCorner;
+  const cv::Mat clean = WeakEdgeRunningOnFromAStrongOne();
   constexpr int kImages = 20;
   const int found[2] = {CornerFoundIn(clean, 1.5, 1000, kImages, median, corner, 1.0),
                         CornerFoundIn(clean, 1.5, 1000, kImages, mean, corner, 1.0)};
@@ -519,12 +525,8 @@ TEST(EmplTest, AGapThatCarriesTheEdgeIsBridged) {
   gap.empl.threshold_median = no_gap.empl.threshold_median = false;
   no_gap.idi.max_gap_px = 0;
   ASSERT_GT(gap.idi.max_gap_px, 0);
-  const Vec2d corner(40.4, 40.3);
-  const auto level = [&](const Vec2d& q) {
-    if (q.y() < corner.y()) return q.y() >= corner.y() - 9 && q.x() >= corner.x() && q.x() < 110 ? 180.0 : 80.0;
-    return q.x() >= corner.x() ? 92.0 : 80.0;
-  };
-  const cv::Mat clean = analytic::AreaMeanImage(120, 100, level, 1.0);
+  const Vec2d corner = kWeakEdgeCorner;
+  const cv::Mat clean = WeakEdgeRunningOnFromAStrongOne();
   constexpr int kImages = 20;
   const int found[2] = {CornerFoundIn(clean, 1.5, 1000, kImages, gap, corner, 1.0),
                         CornerFoundIn(clean, 1.5, 1000, kImages, no_gap, corner, 1.0)};
