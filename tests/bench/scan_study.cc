@@ -167,7 +167,7 @@ int Main(int argc, char** argv) {
                                                                       {"bracket", sim::ObjectKind::kLBracket},
                                                                       {"cylinder", sim::ObjectKind::kCylinder}};
   nlohmann::json all = nlohmann::json::array();
-  int total = 0, picked = 0, failed_scans = 0, second_rounds = 0;
+  int total = 0, picked = 0, failed_scans = 0, second_rounds = 0, failed_second_rounds = 0;
   int true_edges_all = 0, false_edges_all = 0;
   std::vector<double> errors_all, ms_all;
   workcell::CorrespondenceTruth match_all;  // pooled over every scene
@@ -227,6 +227,8 @@ int Main(int argc, char** argv) {
       nlohmann::json row = {{"object", name}, {"scene", s}};
       if (!r.ok()) {
         ++failed_scans;
+        // A scan that failed after its second round of stations says so ("with the second round's views").
+        if (r.status().message().find("second round") != std::string::npos) ++failed_second_rounds;
         row["error"] = r.status().ToString();
         fmt::print(stderr, "  {} scene {}: {}\n", name, s, r.status().ToString());
         if (r.status().code() == StatusCode::kNotFound && kind != sim::ObjectKind::kCylinder) {
@@ -353,7 +355,7 @@ int Main(int argc, char** argv) {
   }
   fmt::print(
       "all: {} scenes, {} scans failed, picks succeeded {}/{} ({:.1f} %), worst corner error {:.3f} mm, "
-      "structure time median {:.1f} ms; {} scan(s) took the second round of stations\n",
+      "structure time median {:.1f} ms; {} scan(s) took the second round of stations ({} of them failed)\n",
       total,
       failed_scans,
       picked,
@@ -361,7 +363,8 @@ int Main(int argc, char** argv) {
       100.0 * picked / total,
       max_err_all,
       Median(ms_all),
-      second_rounds);
+      second_rounds + failed_second_rounds,
+      failed_second_rounds);
   fmt::print(
       "model edges on the objects of the successful scans: {} true, {} false (joining corners the object does "
       "not join, or a spurious point)\n",
