@@ -539,8 +539,8 @@ TEST(EmplTest, AGapThatCarriesTheEdgeIsBridged) {
 
 // A faint edge that really ends 10 px before a strong one (at a faint L-corner): nothing in the gap
 // carries it, so its line does not reach the strong edge, and no point is made where the two lines
-// cross. (With extensions long enough to reach it, and every point beyond the segment's end kept, the
-// point is made: the scene can show the failure.)
+// cross. (With extensions long enough to reach it the point is made, and so it is when the gap test
+// accepts every gap: the scene can show the failure.)
 TEST(EmplTest, AGapWithoutTheEdgeIsNotBridged) {
   const Vec2d cross(50.4, 30.3);
   const auto level = [&](const Vec2d& q) {
@@ -549,14 +549,18 @@ TEST(EmplTest, AGapWithoutTheEdgeIsNotBridged) {
     return q.x() >= cross.x() ? 204.0 : 180.0;  // the faint edge x = 50.4 from y = 40.3 down, 24 DN
   };
   const cv::Mat clean = analytic::AreaMeanImage(100, 100, level, 1.0);
-  FeatureOptions long_extensions;
+  // Every point beyond a segment's end is kept, so that the faint L-corner nearer the end does not
+  // stand in for the gap test (IdiOptions::first_point_beyond_end would drop the crossing behind it).
+  FeatureOptions options;
+  options.idi.first_point_beyond_end = false;
+  ASSERT_GT(options.idi.max_gap_px, 0);
+  FeatureOptions long_extensions = options;
   long_extensions.idi.max_gap_px = 0;
   long_extensions.empl.min_extension_px = 14;
-  long_extensions.idi.first_point_beyond_end = false;
   int lines_seen = 0, crossings = 0, crossings_long = 0;
   for (int k = 0; k < 20; ++k) {
     const cv::Mat image = analytic::Quantize(clean, 1.5, 2000 + static_cast<std::uint64_t>(k));
-    const auto r = DetectFeatures(image, FeatureOptions{});
+    const auto r = DetectFeatures(image, options);
     const auto r_long = DetectFeatures(image, long_extensions);
     ASSERT_TRUE(r.ok() && r_long.ok());
     bool seen = false;
