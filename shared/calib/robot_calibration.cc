@@ -9,6 +9,7 @@
 
 #include "shared/geometry/lines.h"
 #include "shared/optim/vicki_costs.h"
+#include "shared/util/statistics.h"
 
 namespace idi::calib {
 namespace {
@@ -129,13 +130,6 @@ std::vector<ReadingFit> Fits(const Unknowns& u, const RobotCalibrationData& d,
     f[i].whitened = (*w[i] * e->r).norm();
   }
   return f;
-}
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
 }
 
 // Robust sigma of whitened 2-vectors: the median norm of a 2D Gaussian is sigma sqrt(2 ln 2).

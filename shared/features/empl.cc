@@ -7,6 +7,8 @@
 #include <numeric>
 #include <tuple>
 
+#include "shared/util/statistics.h"
+
 namespace idi {
 namespace {
 
@@ -303,15 +305,6 @@ double WrapHalfPi(double a) {
     a += kEmplPi;
   }
   return a;
-}
-
-double Median(std::vector<double> v) {
-  if (v.empty()) {
-    return 0;
-  }
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
 }
 
 }  // namespace

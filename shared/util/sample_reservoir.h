@@ -11,13 +11,21 @@
 #include <limits>
 #include <vector>
 
+#include "shared/util/statistics.h"
+
 namespace idi {
 
 class SampleReservoir {
  public:
   explicit SampleReservoir(std::size_t capacity = 16384) : capacity_(std::max<std::size_t>(capacity, 1)) {}
 
+  // A sample that is not a number is counted apart (not_finite()) and left out of everything else, so
+  // one bad timing cannot poison the sum or the percentiles.
   void Add(double v) {
+    if (!std::isfinite(v)) {
+      ++not_finite_;
+      return;
+    }
     ++count_;
     sum_ += v;
     min_ = std::min(min_, v);
@@ -32,6 +40,7 @@ class SampleReservoir {
   }
 
   uint64_t count() const { return count_; }
+  uint64_t not_finite() const { return not_finite_; }
   double sum() const { return sum_; }
   double min() const { return count_ ? min_ : 0.0; }
   double max() const { return count_ ? max_ : 0.0; }
@@ -40,13 +49,7 @@ class SampleReservoir {
   const std::vector<double>& kept() const { return kept_; }
 
   // Nearest-rank percentile (q in [0, 1]) of the kept samples; 0 when there are none.
-  double Percentile(double q) const {
-    if (kept_.empty()) return 0.0;
-    std::vector<double> v = kept_;
-    std::sort(v.begin(), v.end());
-    const std::size_t rank = static_cast<std::size_t>(std::ceil(q * static_cast<double>(v.size())));
-    return v[std::clamp<std::size_t>(rank, 1, v.size()) - 1];
-  }
+  double Percentile(double q) const { return NearestRankPercentile(kept_, q); }
 
  private:
   // splitmix64: a fixed sequence, independent of any other generator in the program.
@@ -59,7 +62,7 @@ class SampleReservoir {
 
   std::size_t capacity_;
   std::vector<double> kept_;
-  uint64_t count_ = 0, state_ = 0x5EED;
+  uint64_t count_ = 0, not_finite_ = 0, state_ = 0x5EED;
   double sum_ = 0.0;
   double min_ = std::numeric_limits<double>::infinity(), max_ = -std::numeric_limits<double>::infinity();
 };

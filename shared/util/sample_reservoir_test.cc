@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
+
 namespace idi {
 namespace {
 
@@ -24,6 +27,23 @@ TEST(SampleReservoirTest, EmptyReportsZero) {
   EXPECT_DOUBLE_EQ(r.Percentile(0.5), 0.0);
   EXPECT_DOUBLE_EQ(r.min(), 0.0);
   EXPECT_DOUBLE_EQ(r.max(), 0.0);
+}
+
+// A NaN or infinite timing (a clock that went wrong) is counted apart and changes nothing else: with it
+// in the sum, the mean would be NaN; in the kept samples, the sort's order (and so every percentile)
+// would be undefined.
+TEST(SampleReservoirTest, NotFiniteSamplesAreCountedApart) {
+  SampleReservoir r(10);
+  r.Add(2.0);
+  r.Add(std::nan(""));
+  r.Add(std::numeric_limits<double>::infinity());
+  r.Add(4.0);
+  EXPECT_EQ(r.count(), 2u);
+  EXPECT_EQ(r.not_finite(), 2u);
+  EXPECT_DOUBLE_EQ(r.sum(), 6.0);
+  EXPECT_DOUBLE_EQ(r.max(), 4.0);
+  EXPECT_DOUBLE_EQ(r.Percentile(1.0), 4.0);
+  EXPECT_EQ(r.kept().size(), 2u);
 }
 
 // A long run keeps only `capacity` samples, and they stay a uniform sample of the whole run: a

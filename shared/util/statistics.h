@@ -1,7 +1,10 @@
 // Small statistics helpers shared by the front end and the reconstruction.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
+#include <cstddef>
+#include <vector>
 
 namespace idi {
 
@@ -12,6 +15,26 @@ inline double ChiSquareQuantile(double dof, double z) {
   const double c = 2.0 / (9.0 * dof);
   const double t = 1.0 - c + z * std::sqrt(c);
   return dof * t * t * t;
+}
+
+// The element of rank n/2 of v in ascending order (for an even count, the upper of the two middle
+// ones); `if_empty` when v is empty.
+inline double Median(std::vector<double> v, double if_empty = 0.0) {
+  if (v.empty()) return if_empty;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+// Nearest-rank percentile of v, q in [0, 1]: the smallest element with at least a fraction q of v at
+// or below it (q = 0 gives the minimum, q = 1 the maximum); `if_empty` when v is empty.
+inline double NearestRankPercentile(std::vector<double> v, double q, double if_empty = 0.0) {
+  if (v.empty()) return if_empty;
+  const double r = std::ceil(std::clamp(q, 0.0, 1.0) * static_cast<double>(v.size()));
+  const std::size_t rank = std::clamp<std::size_t>(static_cast<std::size_t>(r), 1, v.size());
+  const auto at = v.begin() + static_cast<std::ptrdiff_t>(rank - 1);
+  std::nth_element(v.begin(), at, v.end());
+  return *at;
 }
 
 }  // namespace idi

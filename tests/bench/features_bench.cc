@@ -32,6 +32,7 @@
 #include "shared/geometry/lines.h"
 #include "shared/sim/render/render.h"
 #include "shared/sim/render/shapes.h"
+#include "shared/util/statistics.h"
 #include "tests/support/object_scenes.h"
 
 namespace idi {
@@ -117,11 +118,7 @@ double CpuMs(const std::function<void()>& f) {
   return static_cast<double>(b.tv_sec - a.tv_sec) * 1e3 + static_cast<double>(b.tv_nsec - a.tv_nsec) * 1e-6;
 }
 
-double Median(std::vector<double> v) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
+double Median(const std::vector<double>& v) { return idi::Median(v, NAN); }
 
 // ---- helpers on lines ----------------------------------------------------------------------------
 

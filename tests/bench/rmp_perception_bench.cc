@@ -35,6 +35,7 @@
 #include "rmp/app/track_spec.h"
 #include "rmp/perception/track_perception.h"
 #include "shared/sim/render/render.h"
+#include "shared/util/statistics.h"
 
 namespace idi {
 namespace {
@@ -69,12 +70,6 @@ double ThreadCpuMs() {
   timespec ts{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
-}
-
-double Percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
 }
 
 int Main(int argc, char** argv) {
@@ -242,30 +237,51 @@ int Main(int argc, char** argv) {
   for (std::size_t k = 0; k < all.size(); ++k) {
     const TrackFrames& tf = all[k];
     const TrackTimes& tt = times[k];
-    stage_rows.push_back(fmt::format("| {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |\n", tf.name,
-                                     Percentile(tt.stage_ms[0], 0.5), Percentile(tt.stage_ms[1], 0.5),
-                                     Percentile(tt.stage_ms[2], 0.5), Percentile(tt.stage_ms[3], 0.5),
-                                     Percentile(tt.stage_ms[4], 0.5), Percentile(tt.stage_ms[5], 0.5)));
+    stage_rows.push_back(fmt::format("| {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |\n",
+                                     tf.name,
+                                     NearestRankPercentile(tt.stage_ms[0], 0.5),
+                                     NearestRankPercentile(tt.stage_ms[1], 0.5),
+                                     NearestRankPercentile(tt.stage_ms[2], 0.5),
+                                     NearestRankPercentile(tt.stage_ms[3], 0.5),
+                                     NearestRankPercentile(tt.stage_ms[4], 0.5),
+                                     NearestRankPercentile(tt.stage_ms[5], 0.5)));
     every.insert(every.end(), tt.ms.begin(), tt.ms.end());
     every_fastest.insert(every_fastest.end(), tt.fastest.begin(), tt.fastest.end());
-    fmt::print("| {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:g} |\n", tf.name, tf.pairs.size(),
-               Percentile(tt.ms, 0.5), Percentile(tt.ms, 0.99), *std::max_element(tt.ms.begin(), tt.ms.end()),
-               Percentile(tt.fastest, 0.5), Percentile(tt.fastest, 0.99), Percentile(tt.features_ms, 0.5),
-               Percentile(tt.pieces, 0.5));
+    fmt::print("| {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:g} |\n",
+               tf.name,
+               tf.pairs.size(),
+               NearestRankPercentile(tt.ms, 0.5),
+               NearestRankPercentile(tt.ms, 0.99),
+               *std::max_element(tt.ms.begin(), tt.ms.end()),
+               NearestRankPercentile(tt.fastest, 0.5),
+               NearestRankPercentile(tt.fastest, 0.99),
+               NearestRankPercentile(tt.features_ms, 0.5),
+               NearestRankPercentile(tt.pieces, 0.5));
   }
-  fmt::print("| all | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | | |\n", total_pairs, Percentile(every, 0.5),
-             Percentile(every, 0.99), *std::max_element(every.begin(), every.end()), Percentile(every_fastest, 0.5),
-             Percentile(every_fastest, 0.99));
+  fmt::print("| all | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | | |\n",
+             total_pairs,
+             NearestRankPercentile(every, 0.5),
+             NearestRankPercentile(every, 0.99),
+             *std::max_element(every.begin(), every.end()),
+             NearestRankPercentile(every_fastest, 0.5),
+             NearestRankPercentile(every_fastest, 0.99));
   fmt::print("\nmedian ms per stage over all passes (both images): gradients, Canny edges, Hough, EMPL fits and "
              "merges, IDI points, then stereo matching, triangulation and the track model\n\n"
              "| track | gradients | edges | Hough | EMPL | IDI points | stereo and track |\n|---|---|---|---|---|---|---|\n");
   for (const std::string& row : stage_rows) fmt::print("{}", row);
-  fmt::print("\nmedian {:.2f} ms, p99 {:.2f} ms per stereo pair over all passes; each pair's fastest pass: median {:.2f} ms, "
-             "p99 {:.2f} ms (goal: 8 and 15 ms)\n",
-             Percentile(every, 0.5), Percentile(every, 0.99), Percentile(every_fastest, 0.5), Percentile(every_fastest, 0.99));
-  fmt::print("this thread's CPU time per pair over all passes (wall time less preemption): median {:.2f} ms, p99 {:.2f} ms, "
-             "max {:.2f} ms\n",
-             Percentile(every_cpu, 0.5), Percentile(every_cpu, 0.99), *std::max_element(every_cpu.begin(), every_cpu.end()));
+  fmt::print(
+      "\nmedian {:.2f} ms, p99 {:.2f} ms per stereo pair over all passes; each pair's fastest pass: median {:.2f} ms, "
+      "p99 {:.2f} ms (goal: 8 and 15 ms)\n",
+      NearestRankPercentile(every, 0.5),
+      NearestRankPercentile(every, 0.99),
+      NearestRankPercentile(every_fastest, 0.5),
+      NearestRankPercentile(every_fastest, 0.99));
+  fmt::print(
+      "this thread's CPU time per pair over all passes (wall time less preemption): median {:.2f} ms, p99 {:.2f} ms, "
+      "max {:.2f} ms\n",
+      NearestRankPercentile(every_cpu, 0.5),
+      NearestRankPercentile(every_cpu, 0.99),
+      *std::max_element(every_cpu.begin(), every_cpu.end()));
   return 0;
 }
 

@@ -39,24 +39,19 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <system_error>
 #include <fstream>
-#include <numeric>
 #include <nlohmann/json.hpp>
+#include <numeric>
 #include <string>
+#include <system_error>
 #include <vector>
 
+#include "shared/util/statistics.h"
 #include "workcell/app/scan_command.h"
 #include "workcell/procedures/scan_twin.h"
 
 namespace idi {
 namespace {
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
 
 int Main(int argc, char** argv) {
   std::string cal_dir, json_out, only, out_dir;
