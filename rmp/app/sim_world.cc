@@ -105,13 +105,16 @@ class TwinCameras final : public sim::SimProcess, public FrameSource {
         render[k] = true;
       }
     }
-    // The two cameras render at once, one thread each (the image does not depend on the threads).
+    // The two cameras render at once, each on half the cores (one each on a two-core machine; the
+    // image does not depend on the threads).
     Result<cv::Mat> rendered[2] = {cv::Mat(), cv::Mat()};
     auto render_camera = [&](int k) {
       const RigCamera& cam = k == 0 ? rig_.left : rig_.right;
       sim::RenderOptions ro = world_->options_.render;
       ro.seed = world_->options_.seed * 1000003 + seq_[k] * 2 + static_cast<uint64_t>(k);
-      if (render[0] && render[1] && ro.threads == 0) ro.threads = 1;
+      if (render[0] && render[1] && ro.threads == 0) {
+        ro.threads = std::clamp(static_cast<int>(std::thread::hardware_concurrency()) / 2, 1, 4);
+      }
       rendered[k] = sim::RenderScene(scene_, cam.intrinsics, (world_from_vehicle * cam.vehicle_from_camera).Inverse(), ro);
     };
     const auto render_start = std::chrono::steady_clock::now();
