@@ -762,7 +762,8 @@ void PrintCornerDetails(const sim::GroundTruth& truth,
                     (l->extension1 - l->p1).norm(),
                     (l->extension2 - l->p2).norm());
       } else {
-        std::printf(": no line");
+        const Vec2d a = to_fit(tl.p1_px), b = to_fit(tl.p2_px);
+        std::printf(": no line, truth %.1f,%.1f-%.1f,%.1f", a.x(), a.y(), b.x(), b.y());
       }
       std::printf("]");
     }
