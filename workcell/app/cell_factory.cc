@@ -374,6 +374,13 @@ JobSpec DayJob(unsigned seed) {
     }
     report["picked"] = picked;
     report["objects"] = objects.size();
+    // The job itself succeeds (its report is the day's result), so a short day must say so where the
+    // operator looks: the journal, at warning level.
+    if (picked < static_cast<int>(objects.size())) {
+      spdlog::warn("day: picked and placed {} of {} objects; report in {}", picked, objects.size(), ctx.run_dir);
+    } else {
+      spdlog::info("day: picked and placed all {} objects", picked);
+    }
     return report;
   };
   return j;
