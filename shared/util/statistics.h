@@ -27,10 +27,11 @@ inline double Median(std::vector<double> v, double if_empty = 0.0) {
 }
 
 // Nearest-rank percentile of v, q in [0, 1]: the smallest element with at least a fraction q of v at
-// or below it (q = 0 gives the minimum, q = 1 the maximum); `if_empty` when v is empty.
+// or below it (q = 0 gives the minimum, q = 1 the maximum; q outside [0, 1] is clamped, NaN taken as
+// 0); `if_empty` when v is empty.
 inline double NearestRankPercentile(std::vector<double> v, double q, double if_empty = 0.0) {
   if (v.empty()) return if_empty;
-  const double r = std::ceil(std::clamp(q, 0.0, 1.0) * static_cast<double>(v.size()));
+  const double r = std::ceil((q > 0 ? std::min(q, 1.0) : 0.0) * static_cast<double>(v.size()));
   const std::size_t rank = std::clamp<std::size_t>(static_cast<std::size_t>(r), 1, v.size());
   const auto at = v.begin() + static_cast<std::ptrdiff_t>(rank - 1);
   std::nth_element(v.begin(), at, v.end());

@@ -25,6 +25,8 @@ TEST(StatisticsTest, NearestRankPercentile) {
   EXPECT_DOUBLE_EQ(NearestRankPercentile(v, 0.995), 100.0);  // the rank rounds up
   EXPECT_DOUBLE_EQ(NearestRankPercentile(v, 1.0), 100.0);
   EXPECT_DOUBLE_EQ(NearestRankPercentile(v, 2.0), 100.0);  // q is clamped to [0, 1]
+  EXPECT_DOUBLE_EQ(NearestRankPercentile(v, -1.0), 1.0);
+  EXPECT_DOUBLE_EQ(NearestRankPercentile(v, NAN), 1.0);  // NaN is no rank: the minimum, not a cast of NaN
   EXPECT_DOUBLE_EQ(NearestRankPercentile({3, 1, 2}, 0.5), 2.0);
   EXPECT_DOUBLE_EQ(NearestRankPercentile({}, 0.5), 0.0);
   EXPECT_DOUBLE_EQ(NearestRankPercentile({}, 0.5, -1.0), -1.0);
