@@ -51,6 +51,8 @@ class TwinCameras final : public sim::SimProcess, public FrameSource {
     period_ns_ = SecToNsRound(1.0 / world->options_.camera_rate_hz);
     latency_ns_ = SecToNsRound(world->options_.camera_latency_s);
     next_ns_ = period_ns_;
+    // When both cameras render at once, each gets half the cores (asked once: it reads /sys each time).
+    pair_render_threads_ = std::clamp(static_cast<int>(std::thread::hardware_concurrency()) / 2, 1, 4);
   }
 
   int64_t NextWakeNs() const override { return next_ns_; }
@@ -112,9 +114,7 @@ class TwinCameras final : public sim::SimProcess, public FrameSource {
       const RigCamera& cam = k == 0 ? rig_.left : rig_.right;
       sim::RenderOptions ro = world_->options_.render;
       ro.seed = world_->options_.seed * 1000003 + seq_[k] * 2 + static_cast<uint64_t>(k);
-      if (render[0] && render[1] && ro.threads == 0) {
-        ro.threads = std::clamp(static_cast<int>(std::thread::hardware_concurrency()) / 2, 1, 4);
-      }
+      if (render[0] && render[1] && ro.threads == 0) ro.threads = pair_render_threads_;
       rendered[k] = sim::RenderScene(scene_, cam.intrinsics, (world_from_vehicle * cam.vehicle_from_camera).Inverse(), ro);
     };
     const auto render_start = std::chrono::steady_clock::now();
@@ -187,6 +187,7 @@ class TwinCameras final : public sim::SimProcess, public FrameSource {
   StereoRig rig_;
   std::mt19937_64 rng_;
   int64_t period_ns_ = 0, latency_ns_ = 0, next_ns_ = 0;
+  int pair_render_threads_ = 1;
   uint64_t seq_[2] = {0, 0};
   cv::Mat last_[2];
   std::deque<std::pair<int64_t, hal::Image>> pending_;
