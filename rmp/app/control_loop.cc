@@ -59,6 +59,8 @@ const char* DecisionName(Decision d) {
     case Decision::kStopRequested: return "stop-requested";
     case Decision::kRmpNotRunning: return "rmp-not-running";
     case Decision::kRmpStatusStale: return "rmp-status-stale";
+    case Decision::kOdometryStale:
+      return "odometry-stale";
     case Decision::kBusOff: return "bus-off";
     case Decision::kLowBattery: return "low-battery";
     case Decision::kRmpFault: return "rmp-fault";
@@ -72,11 +74,14 @@ const char* DecisionName(Decision d) {
 
 Status ControlLoopOptions::Check() const {
   if (!(max_perception_age_s > 0 && std::isfinite(max_perception_age_s))) return InvalidArgument("control: max_perception_age_s must be positive");
+  if (!(max_odometry_age_s > 0 && std::isfinite(max_odometry_age_s)))
+    return InvalidArgument("control: max_odometry_age_s must be positive");
   if (!(track_lost_s > 0)) return InvalidArgument("control: track_lost_s must be positive");
   if (!(stereo_max_skew_s > 0)) return InvalidArgument("control: stereo_max_skew_s must be positive");
   if (!(finish_hold_s >= 0)) return InvalidArgument("control: finish_hold_s must be >= 0");
   if (!(start_timeout_s > 0)) return InvalidArgument("control: start_timeout_s must be positive");
-  if (!(max_run_s >= 0)) return InvalidArgument("control: max_run_s must be >= 0");
+  if (!(max_run_s >= 0 && std::isfinite(max_run_s)))
+    return InvalidArgument("control: max_run_s must be >= 0 (0: no limit)");
   return Status::Ok();
 }
 
@@ -172,6 +177,11 @@ Decision ControlLoop::Decide(int64_t now_ns, PlanOutput* plan, const Pose2& odom
   if (!h.status_fresh) return Decision::kRmpStatusStale;
   if (h.low_battery) return Decision::kLowBattery;
   if (h.rmp_fault) return Decision::kRmpFault;
+  // The pose that the perception is fused at and the planner starts from: never older than the limit.
+  const RmpOdometry& od = driver_->odometry();
+  if (!od.initialized() || static_cast<double>(now_ns - od.pose().timestamp_ns) * 1e-9 > options_.max_odometry_age_s) {
+    return Decision::kOdometryStale;
+  }
   if (last_perception_ns_ < 0) return Decision::kNoPerception;
   if (track_.initialised() && track_.end_known()) {
     // Arrived at the track's known end: nothing more to see (the last tape lies under the vehicle). This

@@ -4,10 +4,10 @@
 //   2. takes the camera frames delivered since the last tick, pairs left and right, skips frozen
 //      (repeated) frames, perceives the track on the newest pair and fuses it into the track model
 //      with the odometry pose at the pair's exposure time;
-//   3. decides: zero when the perception is older than max_perception_age_s, the track is lost, the
-//      RMP's status is stale, the bus is off, the battery is low, a fault bit is set, a stop was
-//      requested (shutdown, a signal) or the RMP driver is not running yet - otherwise the planner's
-//      speed and yaw rate;
+//   3. decides: zero when the perception is older than max_perception_age_s, the wheel odometry is
+//      older than max_odometry_age_s, the track is lost, the RMP's status is stale, the bus is off, the battery is low,
+//      a fault bit is set, a stop was requested (shutdown, a signal) or the RMP driver is not running yet - otherwise
+//      the planner's speed and yaw rate;
 //   4. hands the command to the driver, which sends it on the tick (and zeroes it by itself when its
 //      source data is stale);
 //   5. logs every change of decision (and every tick into the drive log, when recording), and pings
@@ -46,28 +46,32 @@ class FrameSource {
 
 struct ControlLoopOptions {
   double max_perception_age_s = 0.2;  // older perception never moves the vehicle
+  // Wheel odometry (the RMP's integrator frames, 100 Hz) older than this never moves the vehicle: the
+  // status may stay fresh while the integrators alone stop or arrive malformed.
+  double max_odometry_age_s = 0.1;
   double track_lost_s = 0.6;          // no perceived track matched the model for this long: lost
   double stereo_max_skew_s = 0.02;    // left and right frames further apart are not a pair
   double finish_hold_s = 1.0;         // stopped at the track's known end this long: done
   double start_timeout_s = 5.0;       // the RMP driver must be running by then
-  double max_run_s = 0.0;             // 0: no limit
+  double max_run_s = 0.0;             // the run stops (zero, then shutdown) after this long; 0: no limit
 
   Status Check() const;
 };
 
 // Why the tick commanded what it did.
 enum class Decision {
-  kDrive,             // the planner's command (possibly zero, see the plan state)
-  kStopRequested,     // shutdown or a signal
-  kRmpNotRunning,     // connecting, configuring, resetting odometry, or stopped
+  kDrive,          // the planner's command (possibly zero, see the plan state)
+  kStopRequested,  // shutdown or a signal
+  kRmpNotRunning,  // connecting, configuring, resetting odometry, or stopped
   kRmpStatusStale,
+  kOdometryStale,  // no wheel integrators for max_odometry_age_s (or none yet)
   kBusOff,
   kLowBattery,
   kRmpFault,
-  kNoPerception,      // no stereo pair perceived yet
+  kNoPerception,  // no stereo pair perceived yet
   kPerceptionStale,
   kTrackLost,
-  kAtEnd,             // stopped at the track's end
+  kAtEnd,  // stopped at the track's end
 };
 const char* DecisionName(Decision d);
 

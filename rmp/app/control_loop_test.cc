@@ -156,6 +156,47 @@ TEST(ClosedLoopTest, SilenceFromTheRmpCommandsZeroUntilItSpeaksAgain) {
   ExpectNeverDroveOnStaleData(seen);
 }
 
+// The RMP keeps sending its status (so the status is fresh) but not the wheel integrators: the
+// odometry stops, and a pose that old must not move the vehicle.
+TEST(ClosedLoopTest, MissingWheelIntegratorsCommandZeroUntilTheyComeBack) {
+  Observed seen;
+  SimRunOptions o = SmallRun(kStraight, &seen);
+  o.config.sim.faults.integrators_missing_from_s = 1.5;
+  o.config.sim.faults.integrators_missing_to_s = 2.2;
+  o.max_time_s = 15.0;
+  auto res = RunSimulation(o);
+  ASSERT_TRUE(res.ok()) << res.status().ToString();
+  EXPECT_GT(res->report.decisions.at("odometry-stale"), 0u);
+  int in_window = 0;
+  for (const SentFrame& f : seen.sent) {
+    const double t = static_cast<double>(f.t_ns) * 1e-9;
+    // The odometry's last update is at most one 10 ms status cycle before 1.5 s; 0.1 s later, and one
+    // 20 ms tick for the decision to reach the bus: zero until the integrators are heard again.
+    if (t > 1.5 + 0.1 + 0.021 && t < 2.2) {
+      ++in_window;
+      EXPECT_TRUE(f.status_fresh) << t << ": the status itself never stopped";
+      EXPECT_EQ(f.velocity, 0) << t;
+      EXPECT_EQ(f.turn, 0) << t;
+    }
+  }
+  EXPECT_GT(in_window, 20);
+  EXPECT_TRUE(res->report.completed) << res->report.ToJson().dump();
+  ExpectNeverDroveOnStaleData(seen);
+}
+
+// control.max_run_s bounds a run: the twin stops there when no --max-time-s is given.
+TEST(ClosedLoopTest, MaxRunSEndsTheRun) {
+  Observed seen;
+  SimRunOptions o = SmallRun(kStraight, &seen);
+  o.config.control.max_run_s = 2.0;
+  auto res = RunSimulation(o);
+  ASSERT_TRUE(res.ok()) << res.status().ToString();
+  EXPECT_EQ(res->report.end, "time-limit");
+  EXPECT_FALSE(res->report.completed);
+  ASSERT_FALSE(seen.ticks.empty());
+  EXPECT_LT(static_cast<double>(seen.ticks.back().t_ns) * 1e-9, 2.2);
+}
+
 TEST(ClosedLoopTest, ABusOffStopsItAndItRecovers) {
   Observed seen;
   SimRunOptions o = SmallRun(kStraight, &seen);

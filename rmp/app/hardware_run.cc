@@ -101,10 +101,17 @@ Result<RunReport> RunHardware(const HardwareRunOptions& o) {
   NotifyStatus("driving");
   RunReport report;
   Status failure;
+  const int64_t started_ns = clock.NowNs();
   while (true) {
     if (o.stop != nullptr && o.stop->load()) {
       loop.RequestStop("signal");
       report.end = "stopped";
+      break;
+    }
+    if (config.control.max_run_s > 0 &&
+        static_cast<double>(clock.NowNs() - started_ns) * 1e-9 > config.control.max_run_s) {
+      loop.RequestStop("control.max_run_s reached");
+      report.end = "max_run_s";
       break;
     }
     auto rec = loop.Step();

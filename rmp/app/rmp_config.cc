@@ -249,7 +249,12 @@ Result<RmpConfig> ParseRmpConfig(const std::string& text, const std::string& sou
     MapReader r(n, source, "tape");
     r.Number("width_m", &c.perception.tape.tape_width_m);
     r.Bool("brighter", &c.perception.tape_brighter);
-    return r.Run();
+    IDI_RETURN_IF_ERROR(r.Run());
+    // A strip is accepted within this of the tape's width: at most half the width, as the twin and the
+    // replay set it, so that narrow tape (19 mm) is not refused over a tolerance the file cannot set.
+    c.perception.tape.width_tolerance_m =
+        std::min(c.perception.tape.width_tolerance_m, 0.5 * c.perception.tape.tape_width_m);
+    return Status::Ok();
   });
   top.Custom("perception", [&](const YAML::Node& n) {
     MapReader r(n, source, "perception");
@@ -279,6 +284,7 @@ Result<RmpConfig> ParseRmpConfig(const std::string& text, const std::string& sou
     MapReader r(n, source, "control");
     r.Number("rate_hz", &rate_hz);
     r.Number("max_perception_age_s", &c.control.max_perception_age_s);
+    r.Number("max_odometry_age_s", &c.control.max_odometry_age_s);
     r.Number("status_timeout_s", &c.driver.status_timeout_s);
     r.Number("track_lost_s", &c.control.track_lost_s);
     r.Number("finish_hold_s", &c.control.finish_hold_s);
@@ -351,6 +357,8 @@ Result<RmpConfig> ParseRmpConfig(const std::string& text, const std::string& sou
       fr.Number("dead_to_s", &f.dead_to_s);
       fr.Number("rmp_silent_from_s", &f.rmp_silent_from_s);
       fr.Number("rmp_silent_to_s", &f.rmp_silent_to_s);
+      fr.Number("integrators_missing_from_s", &f.integrators_missing_from_s);
+      fr.Number("integrators_missing_to_s", &f.integrators_missing_to_s);
       fr.Number("bus_off_at_s", &f.bus_off_at_s);
       fr.Number("bus_off_duration_s", &f.bus_off_duration_s);
       fr.Number("battery_drop_at_s", &f.battery_drop_at_s);

@@ -12,7 +12,8 @@
 //   planner:  {cruise_speed_mps, max_speed_mps, max_accel_mps2, max_decel_mps2, max_yaw_rate_rps,
 //              max_yaw_accel_rps2, max_lateral_accel_mps2, corner_cut_m, max_corner_cut_m,
 //              command_latency_s, response_time_constant_s, keep_track_in_view}
-//   control:  {rate_hz, max_perception_age_s, status_timeout_s, track_lost_s, finish_hold_s, max_run_s}
+//   control:  {rate_hz, max_perception_age_s, max_odometry_age_s, status_timeout_s, track_lost_s, finish_hold_s,
+//              max_run_s}
 //   rmp:      {model, velocity_scale, accel_scale, turn_scale, min_base_battery_v, balance}
 //   hardware: {can: {interface}, cameras: [{name, backend: v4l2 | libcamera, device, width, height, frame_rate_hz}]}
 //             device: v4l2: a capture node (/dev/video0, better /dev/v4l/by-id/...); libcamera: a camera

@@ -131,8 +131,11 @@ Result<SimRunResult> RunSimulation(const SimRunOptions& o) {
   if (can_log) driver->SetFrameLog(can_log.get());
   IDI_RETURN_IF_ERROR(loop.Start());
 
+  // The limit: --max-time-s, else the config's control.max_run_s, else from the track's length.
   const double max_time_s = o.max_time_s > 0 ? o.max_time_s
-                                             : 2.5 * o.track.Length() / std::max(0.05, config.planner.cruise_speed_mps) + 30.0;
+                            : config.control.max_run_s > 0
+                                ? config.control.max_run_s
+                                : 2.5 * o.track.Length() / std::max(0.05, config.planner.cruise_speed_mps) + 30.0;
   const auto wall_start = std::chrono::steady_clock::now();
   const int64_t sim_start = world->clock()->NowNs();
   RunReport report;

@@ -26,7 +26,7 @@ struct RunReport {
   // Extras.
   uint64_t commands_nonzero = 0;
   double end_distance_m = -1.0;  // truth (sim only)
-  std::string end;               // "finished", "time-limit", "stopped", "error: ..."
+  std::string end;               // "finished", "time-limit" (sim), "max_run_s" (hardware), "stopped", "error: ..."
   double cruise_speed_mps = 0.0, max_speed_mps = 0.0;
   double frame_to_command_ms_median = 0.0, frame_to_command_ms_p99 = 0.0;
   uint64_t frozen_frames = 0, dropped_frames = 0, unpaired_frames = 0, perception_errors = 0;

@@ -263,6 +263,8 @@ Result<std::unique_ptr<SimWorld>> SimWorld::Create(const TrackSpec& track, const
   sim::VirtualCanEndpoint* ep = w->endpoint_;
   faults->Add(f.rmp_silent_from_s, [rmp] { rmp->SetSilent(true); });
   faults->Add(f.rmp_silent_to_s, [rmp] { rmp->SetSilent(false); });
+  faults->Add(f.integrators_missing_from_s, [rmp] { rmp->SetWheelIntegratorsMissing(true); });
+  faults->Add(f.integrators_missing_to_s, [rmp] { rmp->SetWheelIntegratorsMissing(false); });
   faults->Add(f.bus_off_at_s, [bus, ep, d = f.bus_off_duration_s] { bus->InjectBusOff(ep, SecToNsRound(d)); });
   faults->Add(f.battery_drop_at_s, [rmp, v = f.battery_drop_v] { rmp->vehicle().SetBatteryDrop(v); });
   w->bus_->AddProcess(faults.get());

@@ -32,6 +32,9 @@ struct SimFaults {
   std::string dead_camera;        // delivers nothing from dead_from_s to dead_to_s
   double dead_from_s = -1, dead_to_s = -1;
   double rmp_silent_from_s = -1, rmp_silent_to_s = -1;  // the RMP stops sending status (still obeys)
+  // The RMP sends every status frame but the wheel integrators (0x403): the odometry stops while the
+  // status stays fresh.
+  double integrators_missing_from_s = -1, integrators_missing_to_s = -1;
   double bus_off_at_s = -1, bus_off_duration_s = 0.5;   // our CAN controller goes bus-off
   double battery_drop_at_s = -1, battery_drop_v = 0.0;  // the powerbase battery sags
   std::vector<std::pair<double, double>> covered_m;     // stretches of tape covered by a mat

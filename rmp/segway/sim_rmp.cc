@@ -202,8 +202,10 @@ void SimRmp::SendStatusCycle() {
   send(codec_.Encode(RmpBuildFrame{options_.build_id}));
   send(codec_.Encode(RmpTiltFrame{s.pitch_rad, s.pitch_rate_rps, s.roll_rad, s.roll_rate_rps}));
   send(codec_.Encode(RmpSpeedFrame{s.left_wheel_mps, s.right_wheel_mps, s.yaw_rate_rps, static_cast<uint16_t>(cycle_ & 0xFFFF)}));
-  send(codec_.Encode(RmpWheelIntegratorFrame{left_base_ + codec_.DistanceCounts(s.left_wheel_m),
-                                             right_base_ + codec_.DistanceCounts(s.right_wheel_m)}));
+  if (!integrators_missing_) {
+    send(codec_.Encode(RmpWheelIntegratorFrame{left_base_ + codec_.DistanceCounts(s.left_wheel_m),
+                                               right_base_ + codec_.DistanceCounts(s.right_wheel_m)}));
+  }
   send(codec_.Encode(RmpBodyIntegratorFrame{fore_aft_base_ + codec_.DistanceCounts(s.fore_aft_m),
                                             yaw_base_ + codec_.YawCounts(s.yaw_rad)}));
   send(codec_.Encode(RmpTorqueFrame{s.left_torque_nm, s.right_torque_nm}));
