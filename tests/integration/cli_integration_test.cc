@@ -68,6 +68,62 @@ TEST(CliIntegrationTest, ParamsFileRoundTripsThroughKinematics) {
   std::filesystem::remove_all(dir);
 }
 
+// What `calibrate robot` writes, `kinematics --robot` reads (its correlation matrix is skipped there).
+TEST(CliIntegrationTest, RobotCalibrationFeedsKinematics) {
+  const std::string dir = MakeTempDir("calib_kin_cli");
+  const std::string path = dir + "/robot1.yaml";
+  auto r = RunCommand(kWorkcell + " calibrate robot --sim --readings 200 --out " + path);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = RunCommand(kWorkcell + " kinematics --robot " + path + " --joints-deg 0,-90,90,0,0,0 --json");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  std::filesystem::remove_all(dir);
+}
+
+// Noise levels and distances that are not numbers, or negative, are refused with exit 2 and the option
+// named, before the twin is made (whose constructor would abort on them).
+TEST(CliIntegrationTest, CalibrateRefusesBadNoiseAndDistance) {
+  const std::string dir = MakeTempDir("calib_bad_cli");
+  for (const std::string& args : {std::string("robot --sim --spot-sigma-mm nan"),
+                                  std::string("robot --sim --spot-sigma-mm=-0.1"),
+                                  std::string("rtu --sim --spot-sigma-mm nan"),
+                                  std::string("rtu --sim --rail-sigma-mm=-1")}) {
+    const auto r = RunCommand(kWorkcell + " calibrate " + args + " --out " + dir + "/x.yaml");
+    EXPECT_EQ(r.exit_code, 2) << args << ": " << r.err;
+    EXPECT_NE(r.err.find("sigma-mm must be a finite number >= 0"), std::string::npos) << args << ": " << r.err;
+  }
+  const auto r = RunCommand(kWorkcell + " calibrate robot --sim --distance-mm=-500 --out " + dir + "/x.yaml");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("--distance-mm must be a positive distance"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/x.yaml"));
+  std::filesystem::remove_all(dir);
+}
+
+// features --camera: a K that is not [fx, 0, cx, 0, fy, cy, 0, 0, 1] row-major (here transposed, which
+// would put the principal point at (0, 0)) is refused with the file named; the same K in order is used.
+TEST(CliIntegrationTest, FeaturesRefusesATransposedK) {
+  const std::string dir = MakeTempDir("features_k_cli");
+  {
+    // A 64 x 64 grey image with a bright square (binary PGM).
+    std::ofstream img(dir + "/square.pgm", std::ios::binary);
+    img << "P5\n64 64\n255\n";
+    for (int y = 0; y < 64; ++y) {
+      for (int x = 0; x < 64; ++x) img.put(static_cast<char>(x >= 16 && x < 48 && y >= 16 && y < 48 ? 200 : 40));
+    }
+  }
+  {
+    std::ofstream k(dir + "/transposed.yaml");
+    k << "K: [60, 0, 0, 0, 60, 0, 31.5, 31.5, 1]\ndistortion: [-0.1, 0, 0, 0, 0]\n";
+    std::ofstream good(dir + "/good.yaml");
+    good << "K: [60, 0, 31.5, 0, 60, 31.5, 0, 0, 1]\ndistortion: [-0.1, 0, 0, 0, 0]\n";
+  }
+  auto r = RunCommand(kWorkcell + " features " + dir + "/square.pgm --camera " + dir + "/transposed.yaml --json");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("transposed.yaml: K: expected [fx, 0, cx, 0, fy, cy, 0, 0, 1]"), std::string::npos) << r.err;
+  r = RunCommand(kWorkcell + " features " + dir + "/square.pgm --camera " + dir + "/good.yaml --json");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  std::filesystem::remove_all(dir);
+}
+
 TEST(CliIntegrationTest, RmpFootprint) {
   const auto r = RunCommand(kRmp + " fov --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;

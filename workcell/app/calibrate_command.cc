@@ -42,6 +42,13 @@ ArmDevices DevicesFromTwin(sim::WorkcellTwin& twin, int k) {
   return d;
 }
 
+// A noise level from the command line: finite and >= 0 (the twin's constructor refuses others by
+// aborting, and the calibration's weights would be meaningless).
+Status CheckSigma(double v, const char* option) {
+  if (std::isfinite(v) && v >= 0) return Status::Ok();
+  return InvalidArgument(fmt::format("{} must be a finite number >= 0, got {}", option, v));
+}
+
 sim::WorkcellTwinOptions TwinOptions(unsigned seed, double spot_sigma_mm) {
   sim::WorkcellTwinOptions o;
   o.seed = seed;
@@ -178,6 +185,13 @@ nlohmann::json RobotReport(const calib::RobotCalibrationResult& r, const calib::
 }  // namespace
 
 Status RunCalibrateRobot(const RobotCommandOptions& o) {
+  IDI_RETURN_IF_ERROR(CheckSigma(o.spot_sigma_mm, "calibrate robot: --spot-sigma-mm"));
+  IDI_RETURN_IF_ERROR(CheckSigma(o.distance_sigma_mm, "calibrate robot: --distance-sigma-mm"));
+  // 0 (not given): the twin's 1000 mm, or an error below for observations.
+  if (o.distance_mm != 0 && !(std::isfinite(o.distance_mm) && o.distance_mm > 0)) {
+    return InvalidArgument(
+        fmt::format("calibrate robot: --distance-mm must be a positive distance, got {}", o.distance_mm));
+  }
   IDI_ASSIGN_OR_RETURN(const calib::TranslationMethod method, calib::ParseMethod(o.method));
   calib::RobotCalibrationData data;
   std::vector<std::vector<Joints>> held_out;  // per set of the validation file
@@ -328,6 +342,8 @@ Result<calib::ArmModel> ArmForRtu(const std::string& file, bool sim, sim::Workce
 }  // namespace
 
 Status RunCalibrateRtu(const RtuCommandOptions& o) {
+  IDI_RETURN_IF_ERROR(CheckSigma(o.spot_sigma_mm, "calibrate rtu: --spot-sigma-mm"));
+  IDI_RETURN_IF_ERROR(CheckSigma(o.rail_sigma_mm, "calibrate rtu: --rail-sigma-mm"));
   std::unique_ptr<sim::WorkcellTwin> twin;
   if (o.sim) twin = std::make_unique<sim::WorkcellTwin>(TwinOptions(o.seed, o.spot_sigma_mm));
   IDI_ASSIGN_OR_RETURN(const calib::ArmModel arm1, ArmForRtu(o.robot1, o.sim, twin.get(), 0, o.seed, o.spot_sigma_mm, o.cancelled));

@@ -50,6 +50,12 @@ Result<CameraModel> LoadCameraFile(const std::string& path, int* width, int* hei
       if (k.size() != 9) {
         return ParseError(fmt::format("{}: K: expected 9 numbers (3x3 row-major), got {}", path, k.size()));
       }
+      // Row-major [fx, 0, cx, 0, fy, cy, 0, 0, 1]: a transposed K would put the principal point at (0, 0)
+      // and undistort about the wrong centre without a word.
+      if (k[1] != 0 || k[3] != 0 || k[6] != 0 || k[7] != 0 || k[8] != 1 || !(k[0] > 0) || !(k[4] > 0)) {
+        return ParseError(
+            fmt::format("{}: K: expected [fx, 0, cx, 0, fy, cy, 0, 0, 1] with fx, fy > 0 (row-major)", path));
+      }
       cam.params[kFx] = k[0];
       cam.params[kFy] = k[4];
       cam.params[kCx] = k[2];

@@ -32,9 +32,23 @@ Status RunKinematics(const KinematicsOptions& o) {
   if (!o.robot_file.empty()) {
     ParamFileOptions pfo;
     // Also reads `calibrate robot` output: its laser, point, rail-direction and run keys are skipped here.
-    pfo.extra_keys = {"model", "comment", "laser", "calibration", "statistics", "method", "distance_mm",
-                      "theta_x_deg", "theta_y_deg", "px_mm", "py_mm", "point_x_mm", "point_y_mm", "point_z_mm",
-                      "phi_l_deg", "phi_m_deg"};
+    pfo.extra_keys = {"model",
+                      "comment",
+                      "laser",
+                      "calibration",
+                      "statistics",
+                      "method",
+                      "distance_mm",
+                      "theta_x_deg",
+                      "theta_y_deg",
+                      "px_mm",
+                      "py_mm",
+                      "point_x_mm",
+                      "point_y_mm",
+                      "point_z_mm",
+                      "phi_l_deg",
+                      "phi_m_deg",
+                      "correlation"};
     IDI_ASSIGN_OR_RETURN(robot, LoadParamFile(o.robot_file, Rx130ParamSpecs(), pfo));
   }
   if (!o.laser_file.empty()) {
