@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "rmp/app/replay_run.h"
@@ -297,6 +299,17 @@ TEST(ClosedLoopTest, ReplayingARecordingReproducesItsCommands) {
   EXPECT_TRUE(rep->report.completed);
   EXPECT_EQ(rep->report.frames, res->report.frames);
   EXPECT_TRUE(fs::exists(dir / "replay.log"));
+  // Metadata of the wrong type in recording.json: refused naming the key, not a JSON exception.
+  const fs::path rec = fs::path(o.record_dir) / "recording.json";
+  nlohmann::json j;
+  std::ifstream(rec) >> j;
+  j["meta"]["cruise_speed_mps"] = "0.5";
+  std::ofstream(rec) << j.dump();
+  auto bad = RunReplay({o.record_dir, (dir / "replay2.log").string()});
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(bad.status().message().find("meta.cruise_speed_mps must be a number"), std::string::npos)
+      << bad.status().message();
   fs::remove_all(dir);
 }
 

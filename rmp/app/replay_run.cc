@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "rmp/segway/rmp_codec.h"
 #include "shared/replay/can_log_bus.h"
@@ -48,16 +49,29 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   if (log.can.empty()) return InvalidArgument(o.dir + ": the drive log's can.log is empty");
   // The pipeline as it was configured when the log was recorded.
   RmpConfig config = DefaultRmpConfig();
-  const std::string config_yaml = meta.value("config_yaml", std::string());
-  if (!config_yaml.empty()) {
-    IDI_ASSIGN_OR_RETURN(config, ParseRmpConfig(config_yaml, o.dir + "/recording.json (config_yaml)"));
+  if (!meta.is_null() && !meta.is_object()) return InvalidArgument(o.dir + "/recording.json: meta must be an object");
+  // A number of the recording's metadata, when it is there.
+  auto meta_number = [&](const char* key) -> Result<std::optional<double>> {
+    if (!meta.is_object() || !meta.contains(key)) return std::optional<double>();
+    if (!meta[key].is_number()) return InvalidArgument(o.dir + "/recording.json: meta." + key + " must be a number");
+    return std::optional<double>(meta[key].get<double>());
+  };
+  if (meta.is_object() && meta.contains("config_yaml")) {
+    if (!meta["config_yaml"].is_string())
+      return InvalidArgument(o.dir + "/recording.json: meta.config_yaml must be a string");
+    const std::string config_yaml = meta["config_yaml"].get<std::string>();
+    if (!config_yaml.empty()) {
+      IDI_ASSIGN_OR_RETURN(config, ParseRmpConfig(config_yaml, o.dir + "/recording.json (config_yaml)"));
+    }
   }
-  if (meta.contains("cruise_speed_mps")) {
-    config.planner.cruise_speed_mps = meta["cruise_speed_mps"].get<double>();
+  IDI_ASSIGN_OR_RETURN(const std::optional<double> cruise, meta_number("cruise_speed_mps"));
+  IDI_ASSIGN_OR_RETURN(const std::optional<double> tape_width, meta_number("tape_width_m"));
+  if (cruise) {
+    config.planner.cruise_speed_mps = *cruise;
     config.planner.max_speed_mps = std::max(config.planner.max_speed_mps, config.planner.cruise_speed_mps);
   }
-  if (meta.contains("tape_width_m")) {
-    config.perception.tape.tape_width_m = meta["tape_width_m"].get<double>();
+  if (tape_width) {
+    config.perception.tape.tape_width_m = *tape_width;
     config.perception.tape.width_tolerance_m = std::min(config.perception.tape.width_tolerance_m, 0.5 * config.perception.tape.tape_width_m);
   }
   IDI_RETURN_IF_ERROR(config.planner.Check());

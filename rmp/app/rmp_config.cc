@@ -6,6 +6,7 @@
 #include <functional>
 #include <map>
 
+#include "shared/runtime/yaml_error.h"
 #include "shared/util/atomic_file.h"
 #include "shared/util/units.h"
 
@@ -87,6 +88,7 @@ class MapReader {
     if (!node_ || node_.IsNull()) return Status::Ok();
     if (!node_.IsMap()) return InvalidArgument(Where(node_) + ": " + (path_.empty() ? "the file" : path_) + " must be a map");
     for (const auto& kv : node_) {
+      if (!kv.first.IsScalar()) return InvalidArgument(Where(kv.first) + ": keys must be plain names");
       const std::string key = kv.first.as<std::string>();
       auto it = handlers_.find(key);
       if (it == handlers_.end()) {
@@ -197,6 +199,14 @@ Status RmpConfig::Check() const {
         return InvalidArgument(what + ": width and height must be positive, got " + std::to_string(c.width) + "x" + std::to_string(c.height));
       }
       if (!(c.frame_rate_hz >= 0 && c.frame_rate_hz <= 1000)) return InvalidArgument(what + ": frame_rate_hz must be in [0, 1000]");
+      // The perception undistorts with the rig's calibration: a camera delivering another size would
+      // fail on every pair while the vehicle stands.
+      const CameraModel& calibrated = c.name == "right" ? rig.right.intrinsics : rig.left.intrinsics;
+      if (c.width != calibrated.width || c.height != calibrated.height) {
+        return InvalidArgument(what + ": " + std::to_string(c.width) + "x" + std::to_string(c.height) +
+                               " differs from the rig's calibration, " + std::to_string(calibrated.width) + "x" +
+                               std::to_string(calibrated.height) + " (rig.width_px, rig.height_px)");
+      }
       for (std::size_t j = 0; j < i; ++j) {
         if (cameras[j].backend == c.backend && cameras[j].device == c.device) {
           return InvalidArgument(what + " uses the same " + c.backend + " device '" + c.device + "' as camera '" + cameras[j].name + "'");
@@ -210,13 +220,8 @@ Status RmpConfig::Check() const {
   return Status::Ok();
 }
 
-Result<RmpConfig> ParseRmpConfig(const std::string& text, const std::string& source) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    return ParseError(source + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
-  }
+Result<RmpConfig> ParseRmpConfig(const std::string& text, const std::string& source) try {
+  const YAML::Node root = YAML::Load(text);
   RmpConfig c = DefaultRmpConfig();
   c.source = source;
   MapReader top(root, source, "");
@@ -400,6 +405,8 @@ Result<RmpConfig> ParseRmpConfig(const std::string& text, const std::string& sou
   c.sim.balance_mode = c.balance;
   IDI_RETURN_IF_ERROR(c.Check());
   return c;
+} catch (const YAML::Exception& e) {
+  return YamlError(source, e);
 }
 
 Result<RmpConfig> LoadRmpConfig(const std::string& path) {

@@ -70,6 +70,25 @@ TEST(RmpConfigTest, RefusesMistakesNamingFileLineAndKey) {
   ASSERT_FALSE(cams.ok());
   EXPECT_NE(cams.status().message().find("right"), std::string::npos);
   EXPECT_FALSE(ParseRmpConfig("sim: {faults: {frozen_camera: middle}}\n", "c.yaml").ok());
+  // Values and keys of the wrong shape: an error naming the file (never a YAML exception).
+  for (const char* text : {"[x]: 1\n", "planner: {[a]: 1}\n", "backend: [sim]\n", "control: {rate_hz: [1, 2]}\n"}) {
+    const auto r = ParseRmpConfig(text, "c.yaml");
+    ASSERT_FALSE(r.ok()) << text;
+    EXPECT_NE(r.status().message().find("c.yaml"), std::string::npos) << text << ": " << r.status().message();
+  }
+  // Fault times the twin's 64-bit nanosecond clock cannot hold, or spans that end before they begin.
+  for (const char* text : {"sim: {faults: {rmp_silent_from_s: 1.0e10}}\n",
+                           "sim: {faults: {bus_off_duration_s: 1.0e12}}\n",
+                           "sim: {faults: {rmp_silent_from_s: 3, rmp_silent_to_s: 2}}\n",
+                           "sim: {faults: {integrators_missing_from_s: 3, integrators_missing_to_s: 3}}\n"}) {
+    const auto r = ParseRmpConfig(text, "c.yaml");
+    ASSERT_FALSE(r.ok()) << text;
+    EXPECT_NE(r.status().message().find("sim faults"), std::string::npos) << text << ": " << r.status().message();
+  }
+  // 19 mm tape: the width tolerance follows the width (it is not a key of the file).
+  const auto narrow = ParseRmpConfig("tape: {width_m: 0.019}\n", "c.yaml");
+  ASSERT_TRUE(narrow.ok()) << narrow.status().ToString();
+  EXPECT_LE(narrow->perception.tape.width_tolerance_m, 0.5 * 0.019);
   EXPECT_EQ(LoadRmpConfig("/nonexistent/rmp.yaml").status().code(), StatusCode::kNotFound);
 }
 
@@ -90,6 +109,13 @@ TEST(RmpConfigTest, CameraBackendsAreCheckedAtLoad) {
   auto size = HardwareCameras("{name: left, device: /dev/video0, width: 0}", "{name: right, device: /dev/video1}");
   ASSERT_FALSE(size.ok());
   EXPECT_NE(size.status().message().find("camera 'left': width and height"), std::string::npos);
+  // A size other than the rig's calibration (640 x 480 by default) would fail on every pair.
+  auto hd = HardwareCameras("{name: left, device: /dev/video0}",
+                            "{name: right, device: /dev/video1, width: 1280, height: 720}");
+  ASSERT_FALSE(hd.ok());
+  EXPECT_NE(hd.status().message().find("camera 'right': 1280x720 differs from the rig's calibration, 640x480"),
+            std::string::npos)
+      << hd.status().message();
   auto no_device = HardwareCameras("{name: left, device: /dev/video0}", "{name: right, backend: v4l2}");
   ASSERT_FALSE(no_device.ok());
   EXPECT_NE(no_device.status().message().find("camera 'right' has no device"), std::string::npos);

@@ -7,6 +7,8 @@
 #include <functional>
 #include <limits>
 #include <thread>
+#include <tuple>
+#include <utility>
 
 #include "shared/util/units.h"
 
@@ -23,6 +25,34 @@ Status SimFaults::Check() const {
   }
   if (!(drop_probability >= 0 && drop_probability < 1)) return InvalidArgument("sim faults: drop_probability must be in [0, 1)");
   if (!(bus_off_duration_s >= 0)) return InvalidArgument("sim faults: bus_off_duration_s must be >= 0");
+  // Times on the twin's clock (nanoseconds in 64 bits): negative means never; a week is the limit.
+  constexpr double kMaxS = 7 * 24 * 3600.0;
+  const std::pair<const char*, double> times[] = {{"frozen_from_s", frozen_from_s},
+                                                  {"frozen_to_s", frozen_to_s},
+                                                  {"dead_from_s", dead_from_s},
+                                                  {"dead_to_s", dead_to_s},
+                                                  {"rmp_silent_from_s", rmp_silent_from_s},
+                                                  {"rmp_silent_to_s", rmp_silent_to_s},
+                                                  {"integrators_missing_from_s", integrators_missing_from_s},
+                                                  {"integrators_missing_to_s", integrators_missing_to_s},
+                                                  {"bus_off_at_s", bus_off_at_s},
+                                                  {"bus_off_duration_s", bus_off_duration_s},
+                                                  {"battery_drop_at_s", battery_drop_at_s}};
+  for (const auto& [name, t] : times) {
+    if (!(std::isfinite(t) && t <= kMaxS))
+      return InvalidArgument(std::string("sim faults: ") + name +
+                             " must be a time of at most a week (negative: never)");
+  }
+  const std::tuple<const char*, double, double> spans[] = {
+      {"frozen", frozen_from_s, frozen_to_s},
+      {"dead", dead_from_s, dead_to_s},
+      {"rmp_silent", rmp_silent_from_s, rmp_silent_to_s},
+      {"integrators_missing", integrators_missing_from_s, integrators_missing_to_s}};
+  for (const auto& [name, from, to] : spans) {
+    if (from >= 0 && to >= 0 && !(to > from)) {
+      return InvalidArgument(std::string("sim faults: ") + name + "_to_s must come after " + name + "_from_s");
+    }
+  }
   for (std::size_t i = 0; i < covered_m.size(); ++i) {
     if (!(covered_m[i].second > covered_m[i].first && covered_m[i].first >= 0)) {
       return InvalidArgument("sim faults: covered_m[" + std::to_string(i) + "] must be [from, to] with 0 <= from < to");

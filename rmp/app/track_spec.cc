@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "shared/runtime/yaml_error.h"
 #include "shared/sim/render/shapes.h"
 #include "shared/util/atomic_file.h"
 
@@ -72,13 +73,8 @@ Status TrackSpec::Check() const {
   return Status::Ok();
 }
 
-Result<TrackSpec> ParseTrackYaml(const std::string& text, const std::string& source) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    return ParseError(source + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
-  }
+Result<TrackSpec> ParseTrackYaml(const std::string& text, const std::string& source) try {
+  const YAML::Node root = YAML::Load(text);
   if (!root.IsMap()) return ParseError(source + ": expected a map with tape_width_m and points_m");
   TrackSpec t;
   t.source = source;
@@ -115,6 +111,8 @@ Result<TrackSpec> ParseTrackYaml(const std::string& text, const std::string& sou
   if (!root["points_m"]) return InvalidArgument(source + ": missing points_m");
   IDI_RETURN_IF_ERROR(t.Check());
   return t;
+} catch (const YAML::Exception& e) {
+  return YamlError(source, e);
 }
 
 Result<TrackSpec> LoadTrackFile(const std::string& path) {

@@ -5,6 +5,7 @@
 #include <set>
 #include <sstream>
 
+#include "shared/runtime/yaml_error.h"
 #include "shared/util/atomic_file.h"
 
 namespace idi {
@@ -51,8 +52,10 @@ Result<double> ReadNumber(const YAML::Node& node, const std::string& where, cons
 
 }  // namespace
 
-Result<ParamSet> ParamSetFromYaml(const YAML::Node& node, const std::vector<ParamSpec>& specs,
-                                  const std::string& where, const ParamFileOptions& options) {
+Result<ParamSet> ParamSetFromYaml(const YAML::Node& node,
+                                  const std::vector<ParamSpec>& specs,
+                                  const std::string& where,
+                                  const ParamFileOptions& options) try {
   if (!node.IsMap()) {
     return ParseError(where + ": expected a map of parameters (key: value)");
   }
@@ -121,18 +124,18 @@ Result<ParamSet> ParamSetFromYaml(const YAML::Node& node, const std::vector<Para
     }
   }
   return set;
+} catch (const YAML::Exception& e) {
+  return YamlError(where, e);
 }
 
 Result<ParamSet> LoadParamFile(const std::string& path, const std::vector<ParamSpec>& specs,
                                const ParamFileOptions& options) {
   IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(path));
-  YAML::Node root;
   try {
-    root = YAML::Load(text);
+    return ParamSetFromYaml(YAML::Load(text), specs, path, options);
   } catch (const YAML::Exception& e) {
-    return ParseError(path + ":" + std::to_string(e.mark.line + 1) + ": malformed YAML: " + e.msg);
+    return YamlError(path, e);
   }
-  return ParamSetFromYaml(root, specs, path, options);
 }
 
 void EmitParamSet(YAML::Emitter& out, const ParamSet& set) {

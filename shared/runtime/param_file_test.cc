@@ -104,6 +104,11 @@ TEST_F(ParamFileTest, NonNumberAndMalformedYamlAreRejected) {
   EXPECT_NE(r.status().message().find("malformed YAML"), std::string::npos) << r.status().message();
   r = LoadParamFile((dir_ / "absent.yaml").string(), Rx130ParamSpecs());
   EXPECT_EQ(r.status().code(), StatusCode::kNotFound);
+  // A key that is not a name (a list): an error naming the file, not a YAML exception.
+  path = WriteRobotFile("a2_mm", "[a2_mm]: 3");
+  r = LoadParamFile(path, Rx130ParamSpecs());
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find(path), std::string::npos) << r.status().message();
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "shared/runtime/yaml_error.h"
 #include "shared/util/atomic_file.h"
 #include "workcell/procedures/structure.h"
 
@@ -42,14 +43,9 @@ Result<std::vector<double>> Numbers(const YAML::Node& n, std::size_t count, cons
   return out;
 }
 
-Result<std::vector<StructureView>> LoadViews(const std::string& path) {
+Result<std::vector<StructureView>> LoadViews(const std::string& path) try {
   IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(path));
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    return ParseError(path + ":" + std::to_string(e.mark.line + 1) + ": malformed YAML: " + e.msg);
-  }
+  const YAML::Node root = YAML::Load(text);
   if (!root.IsMap() || !root["views"] || !root["views"].IsSequence()) {
     return InvalidArgument(path + ": expected a map with a list 'views'");
   }
@@ -91,6 +87,8 @@ Result<std::vector<StructureView>> LoadViews(const std::string& path) {
     ++index;
   }
   return views;
+} catch (const YAML::Exception& e) {
+  return YamlError(path, e);
 }
 
 Status RunReconstruct(const ReconstructOptions& o) {

@@ -4,6 +4,7 @@
 
 #include <set>
 
+#include "shared/runtime/yaml_error.h"
 #include "shared/util/atomic_file.h"
 
 namespace idi::workcell {
@@ -50,13 +51,8 @@ Result<SerialEndpoint> ReadSerial(const YAML::Node& n, const std::string& where,
 
 }  // namespace
 
-Result<WorkcellConfig> ParseWorkcellConfig(const std::string& text, const std::string& where) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    return ParseError(where + ":" + std::to_string(e.mark.line + 1) + ": malformed YAML: " + e.msg);
-  }
+Result<WorkcellConfig> ParseWorkcellConfig(const std::string& text, const std::string& where) try {
+  const YAML::Node root = YAML::Load(text);
   if (!root || root.IsNull()) return InvalidArgument(where + ": empty configuration");
   IDI_RETURN_IF_ERROR(
       OnlyKeys(root, {"backend", "state_dir", "control", "calibration", "sim", "hardware", "exit_when_idle"}, where, ""));
@@ -138,6 +134,8 @@ Result<WorkcellConfig> ParseWorkcellConfig(const std::string& text, const std::s
                            "hardware.cameras (2)");
   }
   return c;
+} catch (const YAML::Exception& e) {
+  return YamlError(where, e);
 }
 
 Result<WorkcellConfig> LoadWorkcellConfig(const std::string& path) {

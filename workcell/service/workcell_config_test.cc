@@ -56,6 +56,9 @@ TEST(WorkcellConfigTest, RejectsBadConfigsNamingFileLineAndKey) {
            {"backend: hardware\n", "needs hardware.arms"},
            {"backend: sim\nhardware: {arms: [{name: a, host: h, port: 99999}]}\n", "port in 1..65535"},
            {"backend: [", "malformed YAML"},
+           // A map where a list is expected, a list where a name is expected: the file named, no exception.
+           {"backend: hardware\nhardware: {arms: {name: a, host: h, port: 1}}\n", "w.yaml"},
+           {"backend: sim\ncontrol: {[socket]: /run/x}\n", "w.yaml"},
            {"", "empty configuration"},
            {"backend: sim\nsim: {day: [box, teapot]}\n", "'sim.day' entries are box, prism, bracket or cylinder"},
            {"backend: sim\nsim: {day: box}\n", "'sim.day' must be a list"},
