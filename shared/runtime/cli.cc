@@ -86,6 +86,10 @@ int RunCli(CliApp& cli, int argc, char** argv) {
 Result<std::vector<double>> ParseNumberList(const std::string& text, std::size_t expected_count,
                                             const std::string& what) {
   std::vector<double> out;
+  // getline yields no field after a final comma: "1,2," would read as two numbers.
+  if (!text.empty() && text.back() == ',') {
+    return InvalidArgument(what + ": a number is missing after the last comma in '" + text + "'");
+  }
   std::stringstream ss(text);
   std::string item;
   while (std::getline(ss, item, ',')) {

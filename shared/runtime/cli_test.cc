@@ -15,6 +15,11 @@ TEST(CliTest, ParsesNumberLists) {
   const auto bad = ParseNumberList("1,,3", 3, "--aim-mm");
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.status().message().find("--aim-mm"), std::string::npos);
+  // A trailing comma is a missing number, not the end of the list.
+  const auto trailing = ParseNumberList("0,-60,100,0,50,0,", 6, "--joints-deg");
+  ASSERT_FALSE(trailing.ok());
+  EXPECT_NE(trailing.status().message().find("missing after the last comma"), std::string::npos)
+      << trailing.status().message();
 }
 
 TEST(CliTest, ExitCodes) {

@@ -241,7 +241,10 @@ Status RunCalibrateRobot(const RobotCommandOptions& o) {
       for (auto& [set, q] : by_set) held_out.push_back(q);
     }
   }
-  IDI_ASSIGN_OR_RETURN(const calib::RobotCalibrationResult r, calib::CalibrateRobot(data, co));
+  auto calibrated = calib::CalibrateRobot(data, co);
+  // Readings too few or too alike: say which file they came from.
+  if (!calibrated.ok()) return o.sim ? calibrated.status() : calibrated.status().WithContext(o.observations);
+  const calib::RobotCalibrationResult& r = *calibrated;
   spdlog::info("{}", r.Summary());
   for (const calib::OutlierReading& out : r.outliers) {
     spdlog::warn("outlier left out: reading {} (set {}{}) misses the point by {:.3f} mm ({:.1f} sigma)", out.index + 1,
