@@ -255,8 +255,9 @@ JobSpec ScanJob(unsigned seed) {
   j.validate = [](const nlohmann::json& args) {
     IDI_RETURN_IF_ERROR(CheckOnlyKeys(args, {"object", "scene", "pick"}, "scan"));
     if (args.contains("object")) IDI_RETURN_IF_ERROR(CheckObject(args.at("object"), "scan"));
-    if (args.contains("scene") && (!args.at("scene").is_number_integer() || args.at("scene").get<int64_t>() < 0)) {
-      return InvalidArgument("scan: 'scene' must be a non-negative integer");
+    if (args.contains("scene") && (!args.at("scene").is_number_integer() || args.at("scene").get<int64_t>() < 0 ||
+                                   args.at("scene").get<int64_t>() > int64_t{UINT32_MAX})) {
+      return InvalidArgument("scan: 'scene' must be an integer in [0, 4294967295]");
     }
     if (args.contains("pick") && !args.at("pick").is_boolean()) return InvalidArgument("scan: 'pick' must be true or false");
     return Status::Ok();
@@ -266,7 +267,7 @@ JobSpec ScanJob(unsigned seed) {
     SimScanOptions o;
     o.seed = seed;
     o.object = args.value("object", std::string("box"));
-    o.scene = static_cast<unsigned>(args.value("scene", 0));
+    o.scene = static_cast<unsigned>(args.value("scene", int64_t{0}));  // in range: validated
     o.pick = args.value("pick", true);
     o.out = ctx.run_dir;
     o.cancelled = [&ctx] { return ctx.cancelled(); };

@@ -64,6 +64,9 @@ TEST_F(CellTest, ScanAndDayJobsValidateAndNeedTheCalibration) {
   ASSERT_TRUE(store.Open().ok());
   EXPECT_EQ(RunJob(*cell, store, "scan", {{"object", "teapot"}}).status().code(), StatusCode::kInvalidArgument);
   EXPECT_EQ(RunJob(*cell, store, "scan", {{"scene", -1}}).status().code(), StatusCode::kInvalidArgument);
+  // 2^32 would have run scene 0 (the int conversion wrapped it).
+  EXPECT_EQ(RunJob(*cell, store, "scan", {{"scene", int64_t{4294967296}}}).status().code(),
+            StatusCode::kInvalidArgument);
   EXPECT_EQ(RunJob(*cell, store, "scan", {{"colour", "red"}}).status().code(), StatusCode::kInvalidArgument);
   EXPECT_EQ(RunJob(*cell, store, "day", {{"objects", "box,,prism"}}).status().code(), StatusCode::kInvalidArgument);
   const auto r = RunJob(*cell, store, "scan", {{"object", "box"}});

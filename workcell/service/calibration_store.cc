@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -75,7 +76,19 @@ Result<CalibrationVersion> CalibrationStore::Commit(const std::map<std::string, 
                                                     int64_t now_unix_s) {
   IDI_ASSIGN_OR_RETURN(const auto current, Current());
   CalibrationVersion next;
-  next.number = current ? current->number + 1 : 1;
+  // After every version there is, not only after the current one: a commit killed between its folder's
+  // rename and the symlink's swap leaves a complete version that never became current, and the next
+  // commit must not try to rename onto it (that fails, every time).
+  next.number = (current ? current->number : 0) + 1;
+  {
+    std::error_code list_ec;
+    for (const auto& e : fs::directory_iterator(fs::path(root_) / "versions", list_ec)) {
+      const std::string name = e.path().filename().string();
+      if (name.empty() || name.size() > 9 || name.find_first_not_of("0123456789") != std::string::npos) continue;
+      next.number = std::max(next.number, std::stoi(name) + 1);
+    }
+    if (list_ec) return IoError((fs::path(root_) / "versions").string() + ": " + list_ec.message());
+  }
   next.created_unix_s = now_unix_s;
   const fs::path versions = fs::path(root_) / "versions";
   const fs::path tmp = versions / (".tmp-" + VersionName(next.number));

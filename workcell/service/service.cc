@@ -117,10 +117,12 @@ nlohmann::json WorkcellService::Handle(const ControlRequest& r) {
 
 void WorkcellService::SafeStop(const std::string& why) {
   {
+    // With the queue, under the lock the worker takes a job with: a job taken just before this is
+    // cancelled, one not yet taken is gone (set after the worker's reset, never before it).
     std::lock_guard<std::mutex> lock(mu_);
     queue_.clear();
+    cancel_ = true;
   }
-  cancel_ = true;
   const idi::Status st = devices_->StopAll();
   if (!st.ok()) spdlog::error("service: stopping the devices failed: {}", st.message());
   spdlog::warn("service: safe stop: {}", why);
@@ -128,8 +130,11 @@ void WorkcellService::SafeStop(const std::string& why) {
 }
 
 void WorkcellService::RequestShutdown() {
-  shutdown_ = true;
-  cancel_ = true;
+  {
+    std::lock_guard<std::mutex> lock(mu_);  // see SafeStop
+    shutdown_ = true;
+    cancel_ = true;
+  }
   cv_.notify_all();
 }
 
@@ -195,7 +200,10 @@ idi::Status WorkcellService::Run() {
                              : std::chrono::milliseconds(200);
   idi::Status st = StartUp();
   if (!st.ok()) {
-    last_error_ = st.message();
+    {
+      std::lock_guard<std::mutex> lock(mu_);  // the control socket may already read it
+      last_error_ = st.message();
+    }
     (void)devices_->StopAll();
     SetState(ServiceState::kFault, st.message());
   } else {
@@ -273,8 +281,8 @@ void WorkcellService::WorkerLoop() {
       progress_what_.clear();
       state_ = ServiceState::kBusy;
       state_reason_ = "running " + job.name;
+      cancel_ = false;  // under the lock: a stop or shutdown from now on cancels this job
     }
-    cancel_ = false;
     spdlog::info("service: job {} '{}' started", job.id, job.name);
     JobContext ctx;
     ctx.cancel = &cancel_;

@@ -231,6 +231,18 @@ TEST(CalibrationStoreTest, CommitsAtomicallyAndSurvivesAnInterruptedCommit) {
   EXPECT_EQ(ReadFile(*reopened.CurrentItemPath("robot1")).value(), "a3_mm: 625.5\n");
   EXPECT_FALSE(fs::exists(fs::path(store.root()) / "versions" / ".tmp-0003"));
   EXPECT_EQ(reopened.CurrentItemPath("ptu-left").status().code(), StatusCode::kNotFound);
+  // A commit killed after its folder became versions/0003 but before `current` was swapped: 0002
+  // stays current, and the next commit goes past the orphan (it used to fail on renaming onto it).
+  fs::create_directories(fs::path(store.root()) / "versions" / "0003");
+  ASSERT_TRUE(WriteFileAtomically((fs::path(store.root()) / "versions" / "0003" / "meta.json").string(), "{}").ok());
+  CalibrationStore after_kill(state);
+  ASSERT_TRUE(after_kill.Open().ok());
+  EXPECT_EQ((*after_kill.Current())->number, 2);
+  auto v4 = after_kill.Commit({{"ptu-left", "pan_offset_deg: 0.1\n"}}, 3000);
+  ASSERT_TRUE(v4.ok()) << v4.status().ToString();
+  EXPECT_EQ(v4->number, 4);
+  EXPECT_EQ((*after_kill.Current())->number, 4);
+  EXPECT_EQ(ReadFile(*after_kill.CurrentItemPath("robot1")).value(), "a3_mm: 625.5\n");
   fs::remove_all(state);
 }
 
