@@ -256,15 +256,22 @@ Result<hal::GripperState> BarrettDriver::Read() {
 }
 
 Status BarrettDriver::Stop() {
-  if (!port_) {
-    // Stopping must work from any state: open the port without the handshake.
+  // Stopping must work from any state: open the port without the handshake.
+  const auto open_port = [this]() -> Status {
     drivers::SerialOptions serial;
     serial.baud = options_.baud;
     auto port = drivers::SerialPort::Open(options_.port, serial);
     if (!port.ok()) return port.status().WithContext(options_.name + ": stop");
     port_ = std::move(port).value();
-  }
+    return Status::Ok();
+  };
+  if (!port_) IDI_RETURN_IF_ERROR(open_port());
   auto reply = Transact("T", options_.reply_timeout);
+  if (!reply.ok() && reply.status().code() == StatusCode::kIoError) {
+    // The port itself failed (the adapter dropped off the bus and came back): one fresh open for the stop.
+    port_.reset();
+    if (open_port().ok()) reply = Transact("T", options_.reply_timeout);
+  }
   if (!reply.ok()) return NoteFailure(reply.status().WithContext("stop"));
   ++counters_.stops_sent;
   return Status::Ok();

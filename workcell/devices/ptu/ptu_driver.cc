@@ -295,15 +295,23 @@ Status PtuDriver::HaltAfter(Status status) {
 }
 
 Status PtuDriver::Halt() {
-  if (!port_) {
-    // Halting must work from any state: open the port without initialising the unit.
+  // Halting must work from any state: open the port without initialising the unit.
+  const auto open_port = [this]() -> Status {
     drivers::SerialOptions serial;
     serial.baud = options_.baud;
     auto port = drivers::SerialPort::Open(options_.port, serial);
     if (!port.ok()) return port.status().WithContext(options_.name + ": halt");
     port_ = std::move(port).value();
-  }
+    return Status::Ok();
+  };
+  if (!port_) IDI_RETURN_IF_ERROR(open_port());
   auto reply = Transact(PtuCommand("H"), Expect::kAck, options_.reply_timeout);
+  if (!reply.ok() && reply.status().code() == StatusCode::kIoError) {
+    // The port itself failed (a USB adapter that dropped off the bus and came back): the halt is the
+    // one command worth a fresh open, once.
+    port_.reset();
+    if (open_port().ok()) reply = Transact(PtuCommand("H"), Expect::kAck, options_.reply_timeout);
+  }
   if (!reply.ok()) {
     return NoteFailure(reply.status().WithContext("halt"));
   }

@@ -2,9 +2,11 @@
 #include "workcell/devices/ptu/ptu_driver.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <thread>
 
 #include "workcell/devices/ptu/ptu_emulator.h"
@@ -185,6 +187,33 @@ TEST_F(PtuDriverTest, APowerCycleMidSessionIsSurvived) {
 TEST_F(PtuDriverTest, HaltWorksWithoutAnInitialisedConnection) {
   EXPECT_TRUE(driver_->Halt().ok());
   EXPECT_EQ(emulator_->halts(), 1);
+}
+
+// The serial adapter drops off and comes back (here: the unit's pseudo-terminal goes away, and the
+// port's path now leads to a new one): the old descriptor only gives I/O errors, and the halt opens
+// the port again rather than failing on it.
+TEST_F(PtuDriverTest, HaltReopensAPortThatDied) {
+  const std::string link = ::testing::TempDir() + "idi_ptu_link_" + std::to_string(::getpid());
+  std::filesystem::remove(link);
+  std::filesystem::create_symlink(emulator_->port_path(), link);
+  PtuDriverOptions o;
+  o.name = "ptu-left";
+  o.port = link;
+  o.reply_timeout = milliseconds(150);
+  o.quiet_period = milliseconds(30);
+  o.drain_limit = milliseconds(400);
+  o.init_attempts = 2;
+  PtuDriver driver(o, &clock_);
+  ASSERT_TRUE(driver.Connect().ok());
+  emulator_.reset();  // the old pseudo-terminal is gone: its slave side now fails with EIO
+  auto fresh = PtuEmulator::Start();
+  ASSERT_TRUE(fresh.ok()) << fresh.status().ToString();
+  std::filesystem::remove(link);
+  std::filesystem::create_symlink((*fresh)->port_path(), link);
+  const Status halted = driver.Halt();
+  EXPECT_TRUE(halted.ok()) << halted.ToString();
+  EXPECT_EQ((*fresh)->halts(), 1);
+  std::filesystem::remove(link);
 }
 
 TEST_F(PtuDriverTest, ConnectFailuresNameTheDevice) {

@@ -70,7 +70,18 @@ Result<int> TcpConnect(const std::string& host, int port, std::chrono::milliseco
     int rc = ::connect(fd, a->ai_addr, a->ai_addrlen);
     if (rc != 0 && errno == EINPROGRESS) {
       pollfd pfd{fd, POLLOUT, 0};
-      rc = ::poll(&pfd, 1, static_cast<int>(timeout.count()));
+      // A signal (SIGCHLD, SIGTERM) interrupts the wait: wait again for what is left of the timeout,
+      // never take the connection as made.
+      const auto deadline = StaubliSteadyClock::now() + timeout;
+      do {
+        rc = ::poll(&pfd, 1, static_cast<int>(StaubliLeft(deadline).count()));
+      } while (rc < 0 && errno == EINTR);
+      if (rc < 0) {
+        const int err = errno;
+        ::close(fd);
+        last = IoError("cannot connect to " + host + ":" + service + ": " + std::strerror(err));
+        continue;
+      }
       if (rc == 0) {
         ::close(fd);
         last = Timeout("no connection to " + host + ":" + service + " within " + std::to_string(timeout.count()) + " ms");

@@ -175,7 +175,8 @@ Result<Val3Reply> ParseVal3Reply(std::string_view line) {
     }
     reply.error_code = std::atoi(std::string(tokens[2]).c_str());
     // The text is the rest of the line after the code, spacing kept.
-    const std::size_t at = line.find(tokens[2]) + tokens[2].size();
+    // Searched for after the verb: the id before it may contain the code's digits ("14 ERR 4 ...").
+    const std::size_t at = line.find(tokens[2], line.find(tokens[1]) + tokens[1].size()) + tokens[2].size();
     std::string_view text = line.substr(at);
     while (!text.empty() && (text.front() == ' ' || text.front() == '\t')) text.remove_prefix(1);
     while (!text.empty() && (text.back() == ' ' || text.back() == '\r' || text.back() == '\n')) text.remove_suffix(1);

@@ -45,6 +45,10 @@ TEST(Val3ProtocolTest, RepliesRoundTripAndGarbageIsRejected) {
   EXPECT_FALSE(err->ok);
   EXPECT_EQ(err->error_code, 4);
   EXPECT_EQ(err->error_text, "arm power is off");
+  // An id containing the code's digit: the text still starts after the code.
+  const auto err14 = ParseVal3Reply("14 ERR 4 arm power is off");
+  ASSERT_TRUE(err14.ok());
+  EXPECT_EQ(err14->error_text, "arm power is off");
 
   EXPECT_FALSE(ParseVal3Reply("OK 1 2").ok());
   EXPECT_FALSE(ParseVal3Reply("14 MAYBE").ok());
