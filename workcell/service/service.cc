@@ -230,7 +230,22 @@ idi::Status WorkcellService::Run() {
     if (state_ == ServiceState::kFault && reset_requested_) {
       reset_requested_ = false;
       lock.unlock();
+      // Connecting and homing take up to about a minute on the real cell (the pan-tilt units' moves,
+      // the hand's initialisation, each with its own timeout): the watchdog is kept fed meanwhile, or
+      // systemd would abort the service half-way through homing.
+      std::atomic<bool> starting{true};
+      std::thread pinger([&] {
+        while (starting) {
+          NotifyWatchdog();
+          for (auto waited = std::chrono::milliseconds(0); starting && waited < tick;
+               waited += std::chrono::milliseconds(20)) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(20));
+          }
+        }
+      });
       const idi::Status again = StartUp();
+      starting = false;
+      pinger.join();
       if (again.ok()) {
         SetState(ServiceState::kIdle, "reset");
       } else {

@@ -1,10 +1,16 @@
 #include "workcell/service/service.h"
 
 #include <gtest/gtest.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <unistd.h>
 
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <thread>
 
+#include "shared/runtime/systemd_notify.h"
 #include "shared/util/atomic_file.h"
 #include "workcell/service/control_socket.h"
 
@@ -183,6 +189,69 @@ TEST(ServiceTest, DeviceFaultParksInFaultUntilReset) {
   svc.RequestShutdown();
   t.join();
   fs::remove_all(opt.state_dir);
+}
+
+// A reset reconnects and homes (up to about a minute on the real cell): systemd's watchdog must keep
+// hearing from the service meanwhile. The notifications go to a socket of the test's own.
+TEST(ServiceTest, ResetKeepsTheWatchdogFed) {
+  const std::string dir = TempState("watchdog");
+  const std::string sock_path = dir + "/notify.sock";
+  const int sock = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+  ASSERT_GE(sock, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::strncpy(addr.sun_path, sock_path.c_str(), sizeof(addr.sun_path) - 1);
+  ASSERT_EQ(::bind(sock, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)), 0) << std::strerror(errno);
+  ::setenv("NOTIFY_SOCKET", sock_path.c_str(), 1);
+  ::setenv("WATCHDOG_USEC", "300000", 1);  // a ping every 100 ms
+  ::unsetenv("WATCHDOG_PID");
+  if (!WatchdogPeriod()) {
+    ::close(sock);
+    GTEST_SKIP() << "built without libsystemd: no notifications to count";
+  }
+  // Pings received so far (other notifications are drained and not counted).
+  auto drain_pings = [&] {
+    int pings = 0;
+    char buf[256];
+    ssize_t n;
+    while ((n = ::recv(sock, buf, sizeof(buf) - 1, 0)) > 0) {
+      buf[n] = 0;
+      if (std::strstr(buf, "WATCHDOG=1") != nullptr) ++pings;
+    }
+    return pings;
+  };
+  // Devices whose connection takes 1.5 s once they are back.
+  class SlowDevices : public FakeDevices {
+   public:
+    Status Connect() override {
+      if (slow) std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+      return connect_status;
+    }
+    std::atomic<bool> slow{false};
+  } dev;
+  dev.connect_status = Timeout("arm 2: no answer");
+  ServiceOptions opt;
+  opt.state_dir = dir;
+  WorkcellService svc(opt, &dev, {});
+  std::thread t([&] { (void)svc.Run(); });
+  ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kFault; }));
+  dev.connect_status = Status::Ok();
+  dev.slow = true;
+  ControlRequest reset;
+  reset.command = ControlCommand::kReset;
+  ASSERT_TRUE(svc.Handle(reset)["ok"].get<bool>());
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));  // the reset has begun connecting
+  (void)drain_pings();
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));  // inside the 1.5 s connection
+  const int pings = drain_pings();
+  EXPECT_GE(pings, 5) << "the watchdog went unfed while the cell reconnected";
+  EXPECT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kIdle; }));
+  svc.RequestShutdown();
+  t.join();
+  ::unsetenv("NOTIFY_SOCKET");
+  ::unsetenv("WATCHDOG_USEC");
+  ::close(sock);
+  fs::remove_all(dir);
 }
 
 TEST(ServiceTest, FailedStartupIsAFaultAndMissingCalibrationQueuesCalibration) {
