@@ -151,6 +151,11 @@ void ControlServer::Serve() {
     if ((p[0].revents & POLLIN) == 0) continue;
     const int client = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC);
     if (client < 0) continue;
+    // A client that does not read its reply must not hold the service's socket: the reply's write
+    // gives up after the client timeout too.
+    const auto us = std::chrono::duration_cast<std::chrono::microseconds>(options_.client_timeout).count();
+    const timeval send_timeout{static_cast<time_t>(us / 1000000), static_cast<suseconds_t>(us % 1000000)};
+    ::setsockopt(client, SOL_SOCKET, SO_SNDTIMEO, &send_timeout, sizeof(send_timeout));
     HandleClient(client);
     ::close(client);
   }

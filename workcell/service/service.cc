@@ -93,6 +93,10 @@ nlohmann::json WorkcellService::Handle(const ControlRequest& r) {
       std::lock_guard<std::mutex> lock(mu_);
       if (state_ == ServiceState::kFault) return ErrorReply("the cell is in fault (" + last_error_ + "): send reset first");
       if (state_ == ServiceState::kShuttingDown) return ErrorReply("the service is shutting down");
+      // Jobs run for minutes: a longer queue is a client gone wrong, and every status reply lists it.
+      if (queue_.size() >= kMaxQueuedJobs) {
+        return ErrorReply("the job queue is full (" + std::to_string(kMaxQueuedJobs) + " jobs waiting)");
+      }
       const uint64_t id = next_job_id_++;
       queue_.push_back({id, r.job, r.args});
       cv_.notify_all();

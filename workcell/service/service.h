@@ -70,6 +70,8 @@ struct ServiceOptions {
   bool exit_when_idle = false;
 };
 
+inline constexpr std::size_t kMaxQueuedJobs = 100;
+
 class WorkcellService {
  public:
   WorkcellService(ServiceOptions options, DeviceSet* devices, std::vector<JobSpec> jobs);

@@ -169,6 +169,30 @@ TEST(ServiceTest, StopCancelsTheRunningJobAndStopsDevices) {
   fs::remove_all(opt.state_dir);
 }
 
+// The queue is bounded: a client that queues jobs in a loop is told so, and the service goes on.
+TEST(ServiceTest, TheJobQueueIsBounded) {
+  FakeDevices dev;
+  ServiceOptions opt;
+  opt.state_dir = TempState("queue");
+  std::atomic<bool> started{false};
+  WorkcellService svc(opt, &dev, {SlowJob(&started)});
+  std::thread t([&] { (void)svc.Run(); });
+  ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kIdle; }));
+  ASSERT_TRUE(svc.Handle(Job("slow"))["ok"].get<bool>());
+  ASSERT_TRUE(WaitFor([&] { return started.load(); }));  // running, so the rest waits in the queue
+  for (std::size_t i = 0; i < kMaxQueuedJobs; ++i) ASSERT_TRUE(svc.Handle(Job("slow"))["ok"].get<bool>()) << i;
+  const nlohmann::json full = svc.Handle(Job("slow"));
+  EXPECT_FALSE(full["ok"].get<bool>());
+  EXPECT_NE(full.dump().find("the job queue is full"), std::string::npos) << full.dump();
+  ControlRequest stop;
+  stop.command = ControlCommand::kStop;
+  EXPECT_TRUE(svc.Handle(stop)["ok"].get<bool>());
+  EXPECT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kIdle; }));
+  svc.RequestShutdown();
+  t.join();
+  fs::remove_all(opt.state_dir);
+}
+
 TEST(ServiceTest, DeviceFaultParksInFaultUntilReset) {
   FakeDevices dev;
   ServiceOptions opt;
