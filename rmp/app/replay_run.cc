@@ -71,8 +71,7 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
     config.planner.max_speed_mps = std::max(config.planner.max_speed_mps, config.planner.cruise_speed_mps);
   }
   if (tape_width) {
-    config.perception.tape.tape_width_m = *tape_width;
-    config.perception.tape.width_tolerance_m = std::min(config.perception.tape.width_tolerance_m, 0.5 * config.perception.tape.tape_width_m);
+    config.perception.tape.SetTapeWidth(*tape_width);
   }
   IDI_RETURN_IF_ERROR(config.planner.Check());
   IDI_RETURN_IF_ERROR(config.perception.Check());

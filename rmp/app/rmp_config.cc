@@ -255,10 +255,8 @@ Result<RmpConfig> ParseRmpConfig(const std::string& text, const std::string& sou
     r.Number("width_m", &c.perception.tape.tape_width_m);
     r.Bool("brighter", &c.perception.tape_brighter);
     IDI_RETURN_IF_ERROR(r.Run());
-    // A strip is accepted within this of the tape's width: at most half the width, as the twin and the
-    // replay set it, so that narrow tape (19 mm) is not refused over a tolerance the file cannot set.
-    c.perception.tape.width_tolerance_m =
-        std::min(c.perception.tape.width_tolerance_m, 0.5 * c.perception.tape.tape_width_m);
+    // Caps the width tolerance (not a key of the file) at half the width.
+    c.perception.tape.SetTapeWidth(c.perception.tape.tape_width_m);
     return Status::Ok();
   });
   top.Custom("perception", [&](const YAML::Node& n) {

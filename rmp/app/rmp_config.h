@@ -1,6 +1,6 @@
 // idi-rmp's configuration file (`idi-rmp run --config /etc/idi/rmp.yaml`; `sim` and `replay` take one
 // too). Every section is optional; unknown keys are errors naming the file, line and key. Keys carry
-// their unit. See README.md (idi-rmp) for the full list; in short:
+// their unit. The full list:
 //
 //   backend: sim | replay | hardware
 //   state_dir: /var/lib/idi-rmp       drive logs go to <state_dir>/logs/<time> when record: true
@@ -21,7 +21,10 @@
 //             optional at build time: a build without it refuses `backend: libcamera` at load.
 //   sim:      {track, real_time, camera_rate_hz, camera_latency_s, seed, calibration_pitch_error_deg,
 //              calibration_height_error_m, left_wheel_scale_error, right_wheel_scale_error,
-//              slip_noise_m_per_sqrt_m, faults: {...}}
+//              slip_noise_m_per_sqrt_m, faults: {frozen_camera, frozen_from_s, frozen_to_s,
+//              drop_probability, dead_camera, dead_from_s, dead_to_s, rmp_silent_from_s, rmp_silent_to_s,
+//              integrators_missing_from_s, integrators_missing_to_s, bus_off_at_s, bus_off_duration_s,
+//              battery_drop_at_s, battery_drop_v, covered_m: [[from, to], ...]}}
 //   replay:   {dir}
 #pragma once
 

@@ -87,8 +87,7 @@ Result<SimRunResult> RunSimulation(const SimRunOptions& o) {
   IDI_RETURN_IF_ERROR(o.track.Check());
   if (o.track.speed_mps > 0) config.planner.cruise_speed_mps = o.track.speed_mps;
   config.planner.max_speed_mps = std::max(config.planner.max_speed_mps, config.planner.cruise_speed_mps);
-  config.perception.tape.tape_width_m = o.track.tape_width_m;
-  config.perception.tape.width_tolerance_m = std::min(config.perception.tape.width_tolerance_m, 0.5 * o.track.tape_width_m);
+  config.perception.tape.SetTapeWidth(o.track.tape_width_m);
   IDI_RETURN_IF_ERROR(config.planner.Check());
   IDI_RETURN_IF_ERROR(config.perception.Check());
 

@@ -19,6 +19,11 @@ struct PairCandidate {
 
 }  // namespace
 
+void TapeGeometryOptions::SetTapeWidth(double width_m) {
+  tape_width_m = width_m;
+  width_tolerance_m = std::min(width_tolerance_m, 0.5 * width_m);
+}
+
 Status TapeGeometryOptions::Check() const {
   auto positive = [](double v) { return std::isfinite(v) && v > 0; };
   if (!positive(tape_width_m)) return InvalidArgument("perception: tape_width_m must be positive");

@@ -33,6 +33,9 @@ struct TapeGeometryOptions {
   double collinear_deg = 2.0;           // joins turning less than this have no vertex
   double min_piece_length_m = 0.04;
 
+  // Sets the tape's width, and caps the width tolerance at half of it: a strip is accepted within that
+  // of the width, so narrow tape (19 mm) keeps a tolerance that Check accepts.
+  void SetTapeWidth(double width_m);
   Status Check() const;
 };
 

@@ -105,5 +105,18 @@ TEST(TapeGeometryTest, ChecksOptions) {
   EXPECT_FALSE(o.Check().ok());
 }
 
+// Narrow tape keeps a tolerance below its width (the default 20 mm would refuse 19 mm tape); wide tape
+// keeps the tolerance it had.
+TEST(TapeGeometryTest, SettingTheWidthCapsTheTolerance) {
+  TapeGeometryOptions o;
+  o.SetTapeWidth(0.019);
+  EXPECT_DOUBLE_EQ(o.tape_width_m, 0.019);
+  EXPECT_DOUBLE_EQ(o.width_tolerance_m, 0.0095);
+  EXPECT_TRUE(o.Check().ok());
+  TapeGeometryOptions wide;
+  wide.SetTapeWidth(0.1);
+  EXPECT_DOUBLE_EQ(wide.width_tolerance_m, TapeGeometryOptions{}.width_tolerance_m);
+}
+
 }  // namespace
 }  // namespace idi::rmp

@@ -1,4 +1,4 @@
-// yaml-cpp's exceptions as this project's errors: "FILE:LINE: YAML: what" (the line when yaml-cpp knows
+// yaml-cpp's exceptions as this project's errors: "FILE:LINE: malformed YAML: what" (the line when yaml-cpp knows
 // it). The configuration readers catch every YAML::Exception at their entry, so a value of the wrong
 // type (a list where a name is expected, a map walked as a list) names the file and is bad input (exit
 // 2), never an uncaught exception.

@@ -132,9 +132,7 @@ int Main(int argc, char** argv) {
       return 1;
     }
     TrackFrames tf{f.stem().string(), base, {}};
-    tf.config.perception.tape.tape_width_m = track->tape_width_m;
-    tf.config.perception.tape.width_tolerance_m =
-        std::min(tf.config.perception.tape.width_tolerance_m, 0.5 * track->tape_width_m);
+    tf.config.perception.tape.SetTapeWidth(track->tape_width_m);
     rmp::TrackSceneOptions so = base.sim.scene;
     so.seed = base.sim.seed;
     auto scene = rmp::BuildTrackScene(*track, so);
