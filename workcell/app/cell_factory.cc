@@ -2,14 +2,16 @@
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+#include <yaml-cpp/yaml.h>
 
+#include <atomic>
 #include <ctime>
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <sstream>
-#include <yaml-cpp/yaml.h>
 
 #include "shared/hal/clock.h"
 #include "shared/sim/workcell/workcell_twin.h"
@@ -32,6 +34,8 @@ Joints HomeJoints() { return {0.0, -kPi / 2, kPi / 2, 0.0, 0.0, 0.0}; }
 
 // ---- the digital twin -------------------------------------------------------------------------------
 
+// Called from the run thread and the control socket's thread (see HardwareDeviceSet); the twin's moves
+// take no wall time, so one lock around each call is enough.
 class SimDeviceSet final : public DeviceSet {
  public:
   explicit SimDeviceSet(unsigned seed) {
@@ -40,6 +44,7 @@ class SimDeviceSet final : public DeviceSet {
     twin_ = std::make_unique<sim::WorkcellTwin>(o);
   }
   Status Connect() override {
+    std::lock_guard<std::mutex> lock(mu_);
     for (int k = 0; k < 2; ++k) {
       IDI_RETURN_IF_ERROR(twin_->arm(k).ReadJoints().status().WithContext(twin_->arm(k).name()));
       IDI_RETURN_IF_ERROR(twin_->rail(k).Read().status());
@@ -47,6 +52,7 @@ class SimDeviceSet final : public DeviceSet {
     return Status::Ok();
   }
   Status Home() override {
+    std::lock_guard<std::mutex> lock(mu_);
     for (int k = 0; k < 2; ++k) {
       IDI_RETURN_IF_ERROR(twin_->laser(k).SetOn(false));
       IDI_RETURN_IF_ERROR(twin_->arm(k).MoveJoints(HomeJoints(), hal::MoveOptions{}).WithContext("homing " + twin_->arm(k).name()));
@@ -54,6 +60,7 @@ class SimDeviceSet final : public DeviceSet {
     return Status::Ok();
   }
   Status StopAll() override {
+    std::lock_guard<std::mutex> lock(mu_);
     Status first = Status::Ok();
     for (int k = 0; k < 2; ++k) {
       for (Status st : {twin_->arm(k).Stop(), twin_->rail(k).Stop(), twin_->laser(k).SetOn(false)}) {
@@ -63,6 +70,7 @@ class SimDeviceSet final : public DeviceSet {
     return first;
   }
   nlohmann::json Health() override {
+    std::lock_guard<std::mutex> lock(mu_);
     nlohmann::json h = {{"backend", "sim"}, {"simulated_time_s", hal::NsToSec(twin_->clock().NowNs())}};
     for (int k = 0; k < 2; ++k) {
       auto js = twin_->arm(k).ReadJoints();
@@ -80,6 +88,7 @@ class SimDeviceSet final : public DeviceSet {
   }
 
  private:
+  std::mutex mu_;
   std::unique_ptr<sim::WorkcellTwin> twin_;
 };
 
@@ -402,6 +411,12 @@ Result<Cell> MakeSimCell(const WorkcellConfig& config) {
 
 // ---- the real cell ------------------------------------------------------------------------------------
 
+// The service calls it from two threads: the run thread connects and homes (start-up, reset), the
+// control socket's thread stops and reads health. The drivers are not thread-safe, so one thread talks
+// to the devices at a time (io_), one device operation at a time: a stop during a reset waits for the
+// operation in progress (at most its timeout: a PTU's move home, 20 s), then the reset's remaining steps
+// are skipped (Cancelled) and every device is stopped. Health never waits: it is the snapshot taken
+// after the last operation, marked busy while one runs.
 class HardwareDeviceSet final : public DeviceSet {
  public:
   explicit HardwareDeviceSet(const WorkcellConfig& c) {
@@ -426,22 +441,32 @@ class HardwareDeviceSet final : public DeviceSet {
       o.baud = c.hand.baud;
       hand_ = std::make_unique<BarrettDriver>(o, &clock_);
     }
+    std::lock_guard<std::mutex> lock(io_);
+    TakeHealthSnapshot();
   }
+  // Connecting is the start of a (re)start the operator asked for: it clears an earlier stop.
   Status Connect() override {
-    for (auto& a : arms_) IDI_RETURN_IF_ERROR(a->Connect());
-    for (auto& p : ptus_) IDI_RETURN_IF_ERROR(p->Connect());
-    if (hand_) IDI_RETURN_IF_ERROR(hand_->Connect());
+    stop_requested_ = false;
+    for (auto& a : arms_) IDI_RETURN_IF_ERROR(Step("connecting", [&] { return a->Connect(); }));
+    for (auto& p : ptus_) IDI_RETURN_IF_ERROR(Step("connecting", [&] { return p->Connect(); }));
+    if (hand_) IDI_RETURN_IF_ERROR(Step("connecting", [&] { return hand_->Connect(); }));
     return Status::Ok();
   }
   // The arms are only read (an unattended move at power-up is not safe); the PTUs go to 0/0 and the
   // hand initialises (it drives every motor to its stops).
   Status Home() override {
-    for (auto& a : arms_) IDI_RETURN_IF_ERROR(a->ReadJoints().status().WithContext(a->name()));
-    for (auto& p : ptus_) IDI_RETURN_IF_ERROR(p->MoveTo(0.0, 0.0, std::chrono::milliseconds(20'000)));
-    if (hand_) IDI_RETURN_IF_ERROR(hand_->Initialize());
+    for (auto& a : arms_) {
+      IDI_RETURN_IF_ERROR(Step("homing", [&] { return a->ReadJoints().status().WithContext(a->name()); }));
+    }
+    for (auto& p : ptus_) {
+      IDI_RETURN_IF_ERROR(Step("homing", [&] { return p->MoveTo(0.0, 0.0, std::chrono::milliseconds(20'000)); }));
+    }
+    if (hand_) IDI_RETURN_IF_ERROR(Step("homing", [&] { return hand_->Initialize(); }));
     return Status::Ok();
   }
   Status StopAll() override {
+    stop_requested_ = true;  // before the lock: the operation in progress is the last one
+    std::lock_guard<std::mutex> lock(io_);
     Status first = Status::Ok();
     auto keep = [&first](Status st) {
       if (!st.ok() && first.ok()) first = st;
@@ -449,9 +474,30 @@ class HardwareDeviceSet final : public DeviceSet {
     for (auto& a : arms_) keep(a->Stop());
     for (auto& p : ptus_) keep(p->Halt());
     if (hand_) keep(hand_->Stop());
+    TakeHealthSnapshot();
     return first;
   }
   nlohmann::json Health() override {
+    std::unique_lock<std::mutex> io(io_, std::try_to_lock);
+    if (io.owns_lock()) TakeHealthSnapshot();
+    std::lock_guard<std::mutex> lock(health_mu_);
+    nlohmann::json h = health_;
+    h["busy"] = !io.owns_lock();  // a device operation is in progress: the snapshot is from before it
+    return h;
+  }
+
+ private:
+  // One device operation under io_, unless a stop came first.
+  template <typename Op>
+  Status Step(const char* what, Op op) {
+    std::lock_guard<std::mutex> lock(io_);
+    if (stop_requested_) return Cancelled(std::string(what) + " the cell: stopped by the operator");
+    const Status st = op();
+    TakeHealthSnapshot();
+    return st;
+  }
+  // With io_ held.
+  void TakeHealthSnapshot() {
     nlohmann::json h = {{"backend", "hardware"}};
     for (auto& a : arms_) {
       h["arms"].push_back({{"name", a->name()},
@@ -471,14 +517,18 @@ class HardwareDeviceSet final : public DeviceSet {
                    {"timeouts", hand_->counters().timeouts},
                    {"faults", hand_->counters().faults}};
     }
-    return h;
+    std::lock_guard<std::mutex> lock(health_mu_);
+    health_ = std::move(h);
   }
 
- private:
   hal::MonotonicClock clock_;
   std::vector<std::unique_ptr<StaubliDriver>> arms_;
   std::vector<std::unique_ptr<PtuDriver>> ptus_;
   std::unique_ptr<BarrettDriver> hand_;
+  std::mutex io_;
+  std::atomic<bool> stop_requested_{false};
+  std::mutex health_mu_;
+  nlohmann::json health_;
 };
 
 Result<Cell> MakeHardwareCell(const WorkcellConfig& config) {

@@ -5,11 +5,16 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <map>
+#include <thread>
 
 #include "shared/util/atomic_file.h"
+#include "workcell/devices/ptu/ptu_emulator.h"
+#include "workcell/devices/staubli/val3_emulator.h"
 
 namespace idi::workcell {
 namespace {
@@ -172,6 +177,61 @@ TEST_F(CellTest, UnknownBackendAndUnreachableHardwareAreClearErrors) {
   EXPECT_NE(st.message().find("arm1"), std::string::npos) << st.message();
   (void)cell->devices->StopAll();  // stopping a cell that never connected returns (it must not hang)
   EXPECT_EQ(cell->devices->Health().at("arms")[0].at("state").get<std::string>(), "disconnected");
+}
+
+// The service homes the cell on its run thread while the control socket's thread may stop it. A stop
+// during homing waits for the device operation in progress (never talks to a driver another thread is
+// using), then the rest of the homing is skipped and every device is halted; health meanwhile answers
+// at once, marked busy.
+TEST_F(CellTest, AStopDuringHomingEndsItAfterTheOperationInProgress) {
+  auto arm = Val3Emulator::Start();
+  ASSERT_TRUE(arm.ok()) << arm.status().ToString();
+  PtuEmulatorOptions po;
+  po.chatter_on_first_input = false;
+  auto left = PtuEmulator::Start(po);
+  auto right = PtuEmulator::Start(po);
+  ASSERT_TRUE(left.ok() && right.ok());
+  WorkcellConfig c = SimConfig(dir_);
+  c.backend = "hardware";
+  c.arms = {{"arm1", "127.0.0.1", (*arm)->port()}};
+  c.ptus = {{"left", (*left)->port_path(), 9600}, {"right", (*right)->port_path(), 9600}};
+  c.hand.device.clear();
+  auto cell = MakeCell(c);
+  ASSERT_TRUE(cell.ok()) << cell.status().ToString();
+  ASSERT_TRUE(cell->devices->Connect().ok());
+  const std::size_t right_commands = (*right)->commands().size();
+  const std::size_t left_commands = (*left)->commands().size();
+
+  // The left unit answers its first homing command late: homing holds the devices meanwhile.
+  (*left)->DelayNextReply(std::chrono::milliseconds(600));  // within the 1 s reply timeout;
+  Status homed = Status::Ok();
+  std::thread home([&] { homed = cell->devices->Home(); });
+  for (int k = 0; k < 1000 && (*left)->commands().size() == left_commands; ++k) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ASSERT_GT((*left)->commands().size(), left_commands) << "the left unit never got its homing move";
+  EXPECT_TRUE(cell->devices->Health().at("busy").get<bool>());
+  EXPECT_TRUE(cell->devices->StopAll().ok());
+  home.join();
+
+  EXPECT_EQ(homed.code(), StatusCode::kCancelled) << homed.ToString();
+  EXPECT_NE(homed.message().find("stopped by the operator"), std::string::npos) << homed.message();
+  // The right unit was not moved after the stop; both were halted.
+  const std::vector<std::string> after = (*right)->commands();
+  EXPECT_TRUE(std::none_of(after.begin() + static_cast<std::ptrdiff_t>(right_commands),
+                           after.end(),
+                           [](const std::string& cmd) {
+                             // PP<n> / TP<n>: a position command (PP alone is a query)
+                             return (cmd.rfind("PP", 0) == 0 || cmd.rfind("TP", 0) == 0) && cmd.size() > 2;
+                           }))
+      << "the right unit was moved after the stop";
+  EXPECT_GE((*left)->halts(), 1);
+  EXPECT_GE((*right)->halts(), 1);
+  EXPECT_FALSE(cell->devices->Health().at("busy").get<bool>());
+
+  // A reset connects again and homes the whole cell.
+  ASSERT_TRUE(cell->devices->Connect().ok());
+  EXPECT_TRUE(cell->devices->Home().ok());
 }
 
 }  // namespace
