@@ -3,14 +3,16 @@
 #include <fcntl.h>
 #include <grp.h>
 #include <poll.h>
+#include <spdlog/spdlog.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
-#include <spdlog/spdlog.h>
+#include <vector>
 
 namespace idi::workcell {
 namespace {
@@ -138,47 +140,101 @@ void ControlServer::Stop() {
   ::unlink(options_.path.c_str());
 }
 
+// One thread, many clients: a client is read only when poll says it has bytes, so a silent one costs
+// nothing until its deadline, and a stop from a second client is served meanwhile. Requests are
+// handled one at a time, in the order their lines complete.
 void ControlServer::Serve() {
+  using Clock = std::chrono::steady_clock;
+  struct Client {
+    int fd;
+    std::string line;
+    Clock::time_point deadline;
+  };
+  std::vector<Client> clients;
+  const auto send_us = std::chrono::duration_cast<std::chrono::microseconds>(options_.client_timeout).count();
+  const timeval send_timeout{static_cast<time_t>(send_us / 1000000), static_cast<suseconds_t>(send_us % 1000000)};
+  // Replies and closes; an empty reply closes without one.
+  auto finish = [&](std::size_t k, const nlohmann::json& reply) {
+    if (!reply.is_null()) (void)WriteAll(clients[k].fd, reply.dump() + "\n");
+    ::close(clients[k].fd);
+    clients.erase(clients.begin() + static_cast<std::ptrdiff_t>(k));
+  };
+  auto reject = [&](std::size_t k, const std::string& why) {
+    ++rejected_;
+    finish(k, ErrorReply("bad request: " + why));
+  };
   while (!stopping_.load()) {
-    pollfd p[2] = {{listen_fd_, POLLIN, 0}, {wake_read_, POLLIN, 0}};
-    const int r = ::poll(p, 2, -1);
+    std::vector<pollfd> p;
+    p.push_back({wake_read_, POLLIN, 0});
+    // At kMaxControlClients the listener waits (the kernel's backlog holds new ones) until one ends.
+    const bool accepting = clients.size() < kMaxControlClients;
+    p.push_back({accepting ? listen_fd_ : -1, POLLIN, 0});
+    for (const Client& c : clients) p.push_back({c.fd, POLLIN, 0});
+    int wait_ms = -1;
+    const Clock::time_point now = Clock::now();
+    for (const Client& c : clients) {
+      const auto left = std::chrono::ceil<std::chrono::milliseconds>(c.deadline - now).count();
+      wait_ms = wait_ms < 0 ? static_cast<int>(std::max<int64_t>(left, 0))
+                            : std::min(wait_ms, static_cast<int>(std::max<int64_t>(left, 0)));
+    }
+    const int r = ::poll(p.data(), static_cast<nfds_t>(p.size()), wait_ms);
     if (r < 0) {
       if (errno == EINTR) continue;
       spdlog::error("control socket: poll failed: {}", Errno());
-      return;
+      break;
     }
-    if (p[1].revents != 0) return;
-    if ((p[0].revents & POLLIN) == 0) continue;
-    const int client = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC);
-    if (client < 0) continue;
-    // A client that does not read its reply must not hold the service's socket: the reply's write
-    // gives up after the client timeout too.
-    const auto us = std::chrono::duration_cast<std::chrono::microseconds>(options_.client_timeout).count();
-    const timeval send_timeout{static_cast<time_t>(us / 1000000), static_cast<suseconds_t>(us % 1000000)};
-    ::setsockopt(client, SOL_SOCKET, SO_SNDTIMEO, &send_timeout, sizeof(send_timeout));
-    HandleClient(client);
-    ::close(client);
-  }
-}
-
-void ControlServer::HandleClient(int fd) {
-  const Result<std::string> line = ReadLine(fd, options_.client_timeout);
-  nlohmann::json reply;
-  if (!line.ok()) {
-    ++rejected_;
-    reply = ErrorReply("bad request: " + line.status().message());
-  } else {
-    const Result<ControlRequest> request = ParseControlRequest(*line);
-    if (!request.ok()) {
-      ++rejected_;
-      reply = ErrorReply("bad request: " + request.status().message());
-      spdlog::warn("control socket: rejected a request: {}", request.status().message());
-    } else {
+    if (p[0].revents != 0) break;
+    // Clients first (from the back, as finishing one removes it), then the listener: the indices of
+    // p[2 + k] stay those of clients[k].
+    for (std::size_t k = clients.size(); k-- > 0;) {
+      const short ev = p[2 + k].revents;
+      if (ev == 0) {
+        if (Clock::now() >= clients[k].deadline) {
+          reject(k, "no complete line within " + std::to_string(options_.client_timeout.count()) + " ms");
+        }
+        continue;
+      }
+      char buf[4096];
+      const ssize_t n = ::read(clients[k].fd, buf, sizeof(buf));
+      if (n < 0 && (errno == EINTR || errno == EAGAIN)) continue;
+      if (n < 0) {
+        ++rejected_;
+        finish(k, nlohmann::json());  // the connection is broken: nobody to answer
+        continue;
+      }
+      if (n == 0) {
+        reject(k, "connection closed before a complete line");
+        continue;
+      }
+      std::string& line = clients[k].line;
+      line.append(buf, static_cast<std::size_t>(n));
+      const auto nl = line.find('\n');
+      if (nl == std::string::npos) {
+        if (line.size() > kMaxRequestBytes)
+          reject(k, "line longer than " + std::to_string(kMaxRequestBytes) + " bytes");
+        continue;
+      }
+      line.resize(nl);
+      const Result<ControlRequest> request = ParseControlRequest(line);
+      if (!request.ok()) {
+        spdlog::warn("control socket: rejected a request: {}", request.status().message());
+        reject(k, request.status().message());
+        continue;
+      }
       ++served_;
-      reply = handler_(*request);
+      finish(k, handler_(*request));
+    }
+    if ((p[1].revents & POLLIN) != 0) {
+      const int client = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC);
+      if (client >= 0) {
+        // A client that does not read its reply must not hold the socket: the reply's write gives up
+        // after the client timeout too.
+        ::setsockopt(client, SOL_SOCKET, SO_SNDTIMEO, &send_timeout, sizeof(send_timeout));
+        clients.push_back({client, std::string(), Clock::now() + options_.client_timeout});
+      }
     }
   }
-  (void)WriteAll(fd, reply.dump() + "\n");
+  for (const Client& c : clients) ::close(c.fd);
 }
 
 Result<nlohmann::json> SendControlRequest(const std::string& path, const ControlRequest& request,

@@ -1,6 +1,8 @@
 // The operator control socket: a local Unix-domain stream socket owned by the service, mode 0660 and
 // group-owned by the operators' group, so only members of that group (and root) can control the cell.
-// No network listener. One request line per connection, one reply line (control_protocol.h).
+// No network listener. One request line per connection, one reply line (control_protocol.h). Up to
+// kMaxControlClients connections are open at once; one that sends no complete line within the client
+// timeout gets an error reply and is closed.
 #pragma once
 
 #include <atomic>
@@ -13,6 +15,8 @@
 #include "workcell/service/control_protocol.h"
 
 namespace idi::workcell {
+
+inline constexpr std::size_t kMaxControlClients = 16;
 
 struct ControlServerOptions {
   std::string path = "/run/idi-workcell/control.sock";
@@ -39,7 +43,6 @@ class ControlServer {
  private:
   ControlServer(ControlServerOptions options, Handler handler, int listen_fd, int wake_read, int wake_write);
   void Serve();
-  void HandleClient(int fd);
 
   ControlServerOptions options_;
   Handler handler_;

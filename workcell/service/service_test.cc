@@ -5,6 +5,7 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -360,6 +361,61 @@ TEST(ControlSocketTest, RoundTripAndValidation) {
   (*server)->Stop();
   EXPECT_FALSE(fs::exists(opt.path));
   EXPECT_EQ(SendControlRequest(opt.path, Job("scan")).status().code(), StatusCode::kFailedPrecondition);
+  fs::remove_all(dir);
+}
+
+// Connects to the socket at `path` (a client that then says nothing); -1 on failure.
+int ConnectSilently(const std::string& path) {
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::snprintf(addr.sun_path, sizeof(addr.sun_path), "%s", path.c_str());
+  const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd >= 0 && ::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+// Clients that connect and say nothing (a hung tool, a stuck script) do not hold the socket: a stop sent
+// meanwhile is answered at once, not after their timeouts (60 s here, against the request's 5 s). A
+// client that sends its line in pieces is still served.
+TEST(ControlSocketTest, SilentClientsDoNotDelayAnotherClient) {
+  const std::string dir = TempState("socket-silent");
+  ControlServerOptions opt;
+  opt.path = dir + "/control.sock";
+  opt.client_timeout = std::chrono::milliseconds(60'000);
+  auto server = ControlServer::Start(opt, [](const ControlRequest& r) {
+    return OkReply({{"echo", ControlCommandName(r.command)}});
+  });
+  ASSERT_TRUE(server.ok()) << server.status().ToString();
+  std::vector<int> silent;
+  for (int k = 0; k < 3; ++k) {
+    silent.push_back(ConnectSilently(opt.path));
+    ASSERT_GE(silent.back(), 0);
+  }
+  const int slow = ConnectSilently(opt.path);
+  ASSERT_GE(slow, 0);
+  ASSERT_EQ(::write(slow, "{\"cmd\":", 7), 7);  // half a request
+
+  ControlRequest stop;
+  stop.command = ControlCommand::kStop;
+  const auto reply = SendControlRequest(opt.path, stop, std::chrono::milliseconds(5000));
+  ASSERT_TRUE(reply.ok()) << reply.status().ToString();
+  EXPECT_EQ((*reply)["echo"], "stop");
+
+  const std::string rest = "\"status\"}\n";
+  ASSERT_EQ(::write(slow, rest.data(), rest.size()), static_cast<ssize_t>(rest.size()));
+  std::string answer;
+  char buf[256];
+  for (ssize_t n; answer.find('\n') == std::string::npos && (n = ::read(slow, buf, sizeof(buf))) > 0;) {
+    answer.append(buf, static_cast<std::size_t>(n));
+  }
+  EXPECT_NE(answer.find("\"echo\":\"status\""), std::string::npos) << answer;
+  ::close(slow);
+  for (const int fd : silent) ::close(fd);
+  (*server)->Stop();
+  EXPECT_EQ((*server)->requests_served(), 2u);
   fs::remove_all(dir);
 }
 
