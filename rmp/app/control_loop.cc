@@ -73,10 +73,18 @@ const char* DecisionName(Decision d) {
 }
 
 Status ControlLoopOptions::Check() const {
-  if (!(max_perception_age_s > 0 && std::isfinite(max_perception_age_s))) return InvalidArgument("control: max_perception_age_s must be positive");
-  if (!(max_odometry_age_s > 0 && std::isfinite(max_odometry_age_s)))
-    return InvalidArgument("control: max_odometry_age_s must be positive");
-  if (!(track_lost_s > 0)) return InvalidArgument("control: track_lost_s must be positive");
+  if (!(max_perception_age_s > 0 && max_perception_age_s <= kMaxPerceptionAgeLimitS)) {
+    return InvalidArgument("control: max_perception_age_s = " + std::to_string(max_perception_age_s) +
+                           " must be in (0, " + std::to_string(kMaxPerceptionAgeLimitS) + "] s");
+  }
+  if (!(max_odometry_age_s > 0 && max_odometry_age_s <= kMaxOdometryAgeLimitS)) {
+    return InvalidArgument("control: max_odometry_age_s = " + std::to_string(max_odometry_age_s) + " must be in (0, " +
+                           std::to_string(kMaxOdometryAgeLimitS) + "] s");
+  }
+  if (!(track_lost_s > 0 && track_lost_s <= kTrackLostLimitS)) {
+    return InvalidArgument("control: track_lost_s = " + std::to_string(track_lost_s) + " must be in (0, " +
+                           std::to_string(kTrackLostLimitS) + "] s");
+  }
   if (!(stereo_max_skew_s > 0)) return InvalidArgument("control: stereo_max_skew_s must be positive");
   if (!(finish_hold_s >= 0)) return InvalidArgument("control: finish_hold_s must be >= 0");
   if (!(start_timeout_s > 0)) return InvalidArgument("control: start_timeout_s must be positive");

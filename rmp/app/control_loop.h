@@ -44,6 +44,12 @@ class FrameSource {
   virtual Result<std::vector<hal::Image>> Collect(int64_t now_ns) = 0;
 };
 
+// Upper bounds of the ages below that a configuration may set: data this old is no ground for motion
+// (1 s at 1 m/s is a metre driven blind), and a larger value in a file is a typo, not a choice.
+inline constexpr double kMaxPerceptionAgeLimitS = 1.0;
+inline constexpr double kMaxOdometryAgeLimitS = 0.5;
+inline constexpr double kTrackLostLimitS = 5.0;
+
 struct ControlLoopOptions {
   double max_perception_age_s = 0.2;  // older perception never moves the vehicle
   // Wheel odometry (the RMP's integrator frames, 100 Hz) older than this never moves the vehicle: the

@@ -85,6 +85,17 @@ TEST(RmpConfigTest, RefusesMistakesNamingFileLineAndKey) {
     ASSERT_FALSE(r.ok()) << text;
     EXPECT_NE(r.status().message().find("sim faults"), std::string::npos) << text << ": " << r.status().message();
   }
+  // Ages that would let the vehicle drive on stale data are refused, naming the key.
+  for (const auto& [text, key] : std::vector<std::pair<std::string, std::string>>{
+           {"control: {max_perception_age_s: 5}\n", "max_perception_age_s"},
+           {"control: {max_odometry_age_s: 2}\n", "max_odometry_age_s"},
+           {"control: {track_lost_s: 30}\n", "track_lost_s"},
+           {"control: {status_timeout_s: 3}\n", "status_timeout_s"}}) {
+    const auto r = ParseRmpConfig(text, "c.yaml");
+    ASSERT_FALSE(r.ok()) << text;
+    EXPECT_NE(r.status().message().find(key), std::string::npos) << text << ": " << r.status().message();
+  }
+  EXPECT_TRUE(ParseRmpConfig("control: {max_perception_age_s: 0.5, status_timeout_s: 0.3}\n", "c.yaml").ok());
   // 19 mm tape: the width tolerance follows the width (it is not a key of the file).
   const auto narrow = ParseRmpConfig("tape: {width_m: 0.019}\n", "c.yaml");
   ASSERT_TRUE(narrow.ok()) << narrow.status().ToString();

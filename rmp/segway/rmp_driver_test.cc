@@ -444,6 +444,12 @@ TEST(RmpDriverTest, OptionsAndPreconditions) {
   o = {};
   o.max_input_age_s = std::nan("");
   EXPECT_FALSE(o.Check().ok());
+  o = {};
+  o.status_timeout_s = 2.0;  // two seconds without status would still let it drive
+  EXPECT_NE(o.Check().message().find("status_timeout_s"), std::string::npos);
+  o = {};
+  o.max_input_age_s = 3.0;
+  EXPECT_NE(o.Check().message().find("max_input_age_s"), std::string::npos);
   hal::SimClock clock;
   sim::VirtualCanBus bus(&clock);
   EXPECT_FALSE(RmpDriver::Create(nullptr, &clock, {}).ok());
