@@ -138,6 +138,9 @@ Result<RunReport> RunHardware(const HardwareRunOptions& o) {
   report.frame_to_command_ms_p99 = st.frame_to_command_ms.Percentile(0.99);
   report.commands = driver->health().counters.frames_sent;
   report.commands_nonzero = driver->health().counters.motion_frames;
+  if (const uint64_t lost = driver->health().counters.log_errors; lost > 0) {
+    spdlog::error("the drive log's can.log is missing {} CAN frames that could not be written (disk full?)", lost);
+  }
   report.distance_m = driver->odometry().pose().distance_m;
   report.decisions = st.decisions;
   if (!failure.ok()) return failure;

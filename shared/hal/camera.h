@@ -14,7 +14,9 @@ namespace idi::hal {
 
 struct Image {
   int64_t timestamp_ns = 0;  // exposure middle, on the device clock (see clock.h)
-  uint64_t sequence = 0;     // frame counter from the device; gaps mean dropped frames
+  // Frame counter from the device; gaps mean dropped frames. It goes on increasing across a reconnect
+  // or restart of the same camera object, so (camera, sequence) names one frame.
+  uint64_t sequence = 0;
   std::string camera;        // "left", "right", ...
   cv::Mat pixels;            // CV_8UC1 (gray) or CV_8UC3 (BGR)
 };

@@ -217,13 +217,17 @@ Result<std::vector<CandumpRecord>> ParseCandumpText(std::string_view text, std::
   std::size_t pos = 0;
   while (pos < text.size()) {
     std::size_t end = text.find('\n', pos);
-    if (end == std::string_view::npos) end = text.size();
+    const bool unterminated = end == std::string_view::npos;
+    if (unterminated) end = text.size();
     const std::string_view line = text.substr(pos, end - pos);
     pos = end + 1;
     ++line_no;
     const std::string_view trimmed = TrimCandump(line);
     if (trimmed.empty() || trimmed.front() != '(') continue;  // comment, as canplayer skips it
     Result<CandumpRecord> r = ParseCandumpLine(trimmed, std::string(source_name) + ":" + std::to_string(line_no));
+    // A last line without its newline that does not parse is one the writer was killed in the middle of
+    // (a power cut on the vehicle): the log up to it is kept.
+    if (!r.ok() && unterminated) break;
     if (!r.ok()) return r.status();
     r->line = line_no;
     records.push_back(std::move(r).value());

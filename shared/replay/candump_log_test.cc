@@ -160,6 +160,10 @@ TEST(CandumpParse, TextSkipsCommentsAndNamesTheBadLine) {
   Result<std::vector<CandumpRecord>> bad = ParseCandumpText(text + "(0000000000.020000) can0 402#0\n", "a.log");
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.status().message().find("a.log:5"), std::string::npos) << bad.status().message();
+  // The same bad line as the file's last, without its newline: a writer killed mid-line; the rest is kept.
+  Result<std::vector<CandumpRecord>> torn = ParseCandumpText(text + "(0000000000.020000) can0 402#00112", "a.log");
+  ASSERT_TRUE(torn.ok()) << torn.status().ToString();
+  EXPECT_EQ(torn->size(), 2u);
 }
 
 TEST(CandumpFile, MissingFileIsNotFound) {

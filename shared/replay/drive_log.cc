@@ -28,6 +28,8 @@ Status DriveLogWriter::AddDelivered(int64_t t_ns, const std::string& camera, uin
 }
 
 Status DriveLogWriter::AddTick(const DriveTickRecord& t) {
+  // The CAN frames up to this tick reach the file with it (a killed run loses at most one tick of them).
+  IDI_RETURN_IF_ERROR(can_->Flush());
   return recording_.Add(t.t_ns, {{"type", "tick"},
                                  {"left_seq", t.left_seq},
                                  {"right_seq", t.right_seq},

@@ -63,6 +63,11 @@ Status RecordingWriter::AddImage(int64_t t_ns, const std::string& camera, uint64
   std::snprintf(name, sizeof(name), "%06llu_", static_cast<unsigned long long>(seq));
   const std::string rel = std::string("images/") + name + camera + ".png";
   const std::string path = (fs::path(dir_) / rel).string();
+  // A sequence number seen twice (a camera that counted from 0 again) must not replace a recorded frame.
+  std::error_code ec;
+  if (fs::exists(path, ec))
+    return FailedPrecondition(path + ": already recorded (frame sequence " + std::to_string(seq) + " of " + camera +
+                              " seen twice); not overwritten");
   if (!cv::imwrite(path, image)) return IoError(path + ": cannot write the image");
   return Add(t_ns, {{"type", "image"}, {"camera", camera}, {"seq", seq}, {"file", rel}});
 }

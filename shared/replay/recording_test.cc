@@ -24,6 +24,9 @@ TEST(RecordingTest, RoundTripWithImagesAndATornLastLine) {
   img.at<uint8_t>(3, 4) = 200;
   ASSERT_TRUE(w->Add(10, {{"type", "joints"}, {"arm", 1}, {"q_deg", {1, 2, 3, 4, 5, 6}}}).ok());
   ASSERT_TRUE(w->AddImage(20, "left", 1, img).ok());
+  // The same sequence again (a camera that counted from 0 again) is refused: the recorded frame stays.
+  EXPECT_EQ(w->AddImage(25, "left", 1, cv::Mat(32, 48, CV_8UC1, cv::Scalar(99))).code(),
+            StatusCode::kFailedPrecondition);
   EXPECT_FALSE(w->Add(30, {{"no_type", 1}}).ok());
   ASSERT_TRUE(w->Finish({{"points", 8}}).ok());
   // A run killed while writing leaves half a line.

@@ -127,6 +127,8 @@ Status LibcameraCamera::Start(const hal::CameraSettings& settings) {
   if (settings.exposure_us > 0) exposure_us_ = settings.exposure_us;
   negotiated_ = LibcameraNegotiated{};
   last_sequence_.reset();
+  // libcamera counts from 0 in every start: a restarted camera's frames follow those delivered before.
+  sequence_base_ = last_delivered_ ? *last_delivered_ + 1 : 0;
   Status s = FindCamera();
   if (s.ok()) s = Configure();
   if (s.ok()) s = AllocateAndMap();
@@ -468,7 +470,8 @@ Result<hal::Image> LibcameraCamera::ConvertRequest(libcamera::Request* request) 
   }
   hal::Image image;
   image.timestamp_ns = t_ns;
-  image.sequence = frame.sequence;
+  image.sequence = sequence_base_ + frame.sequence;
+  last_delivered_ = image.sequence;
   image.camera = options_.name;
   image.pixels = std::move(pixels).value();
   ++counters_.frames;

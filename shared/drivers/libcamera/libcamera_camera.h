@@ -136,7 +136,9 @@ class LibcameraCamera final : public hal::CameraDevice {
   LibcameraCameraCounters counters_;
   LibcameraNegotiated negotiated_;
   bool luma_plane_only_ = false;
-  std::optional<uint32_t> last_sequence_;
+  std::optional<uint32_t> last_sequence_;  // libcamera's count since Start
+  uint64_t sequence_base_ = 0;             // added to it: delivered sequences go on across restarts
+  std::optional<uint64_t> last_delivered_;
 
   // Destroyed in reverse order: the camera and its buffers go before the manager.
   std::shared_ptr<libcamera::CameraManager> manager_;

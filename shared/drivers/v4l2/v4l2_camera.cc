@@ -346,6 +346,9 @@ Status V4l2Camera::MapBuffersAndStream() {
   if (V4l2Ioctl(fd_, VIDIOC_STREAMON, &type) != 0) return DeviceError(Where() + ": " + V4l2Errno("VIDIOC_STREAMON"));
   streaming_ = true;
   last_sequence_.reset();
+  // STREAMON restarts the driver's count at 0: the frames of this stream follow those delivered before
+  // (a reconnect), so that a sequence number names one frame of this camera.
+  sequence_base_ = last_delivered_ ? *last_delivered_ + 1 : 0;
   return Status::Ok();
 }
 
@@ -448,7 +451,8 @@ Result<hal::Image> V4l2Camera::DequeueFrame(std::chrono::steady_clock::time_poin
     }
     hal::Image image;
     image.timestamp_ns = t_ns;
-    image.sequence = sequence;
+    image.sequence = sequence_base_ + sequence;
+    last_delivered_ = image.sequence;
     image.camera = options_.name;
     image.pixels = std::move(pixels).value();
     ++counters_.frames;

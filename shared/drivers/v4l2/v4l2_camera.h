@@ -119,7 +119,9 @@ class V4l2Camera final : public hal::CameraDevice {
   bool streaming_ = false;
   bool timestamps_monotonic_ = false;
   bool timestamp_at_start_of_exposure_ = false;
-  std::optional<uint32_t> last_sequence_;
+  std::optional<uint32_t> last_sequence_;  // the driver's count in this stream
+  uint64_t sequence_base_ = 0;             // added to it: delivered sequences go on across reconnects
+  std::optional<uint64_t> last_delivered_;
   std::chrono::steady_clock::time_point next_reconnect_{};
   std::string lost_reason_;
 };

@@ -168,6 +168,8 @@ TEST_F(V4l2DeviceTest, CameraThatGoesAwayIsReopenedWhenItComesBack) {
   V4l2Camera camera(Options(node, "right"));
   ASSERT_TRUE(camera.Start({}).ok());
   ExpectFrames(camera, 2, CV_8UC1);
+  auto before = camera.Grab(kGrabTimeout);
+  ASSERT_TRUE(before.ok()) << before.status().ToString();
 
   WriteSysfs(unbind_file, device);  // the camera disappears while streaming
   struct Rebind {  // bring it back even when an assertion below fails
@@ -194,6 +196,9 @@ TEST_F(V4l2DeviceTest, CameraThatGoesAwayIsReopenedWhenItComesBack) {
   Result<hal::Image> back = DeviceError("not yet");
   for (int attempt = 0; attempt < 20 && !back.ok(); ++attempt) back = camera.Grab(kGrabTimeout);
   ASSERT_TRUE(back.ok()) << back.status().ToString();
+  // The driver counts from 0 again after STREAMON; the camera's sequence goes on (recordings name
+  // frames by it).
+  EXPECT_GT(back->sequence, before->sequence);
   EXPECT_EQ(camera.state(), V4l2CameraState::kStreaming);
   EXPECT_EQ(camera.counters().reconnects, 1u);
   ExpectFrames(camera, 2, CV_8UC1);
