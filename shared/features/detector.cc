@@ -67,7 +67,8 @@ Status HoughOptions::Check() const {
   IDI_RETURN_IF_ERROR(InRange(vote_window_deg, 0.0, 45.0, "hough.vote_window_deg"));
   IDI_RETURN_IF_ERROR(InRange(band_px, 0.5, 5.0, "hough.band_px"));
   IDI_RETURN_IF_ERROR(InRange(max_angle_error_deg, 1.0, 89.0, "hough.max_angle_error_deg"));
-  IDI_RETURN_IF_ERROR(NonNegative(max_gap_px, "hough.max_gap_px"));
+  // Bounded: the EMPL scan walks the gap on both sides of every segment, one pixel at a time.
+  IDI_RETURN_IF_ERROR(InRange(max_gap_px, 0.0, 200.0, "hough.max_gap_px"));
   IDI_RETURN_IF_ERROR(InRange(min_length_px, 4.0, 1e5, "hough.min_length_px"));
   IDI_RETURN_IF_ERROR(InRange(min_fill, 0.05, 1.0, "hough.min_fill"));
   if (max_lines < 1) {

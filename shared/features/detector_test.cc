@@ -203,6 +203,9 @@ TEST(DetectorTest, BadInputAndBadOptionsAreRejected) {
   o.empl.flat_band_max_texture_ratio = -0.5;
   EXPECT_NE(o.Check().message().find("empl.flat_band_max_texture_ratio"), std::string::npos) << o.Check().message();
   o = FeatureOptions{};
+  o.hough.max_gap_px = 1e9;  // the EMPL scan would walk a billion pixels beyond every segment
+  EXPECT_NE(o.Check().message().find("hough.max_gap_px"), std::string::npos) << o.Check().message();
+  o = FeatureOptions{};
   o.idi.max_point_sigma_px = std::nan("");
   EXPECT_NE(o.Check().message().find("idi.max_point_sigma_px"), std::string::npos) << o.Check().message();
   o.idi.max_point_sigma_px = -1;

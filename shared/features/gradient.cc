@@ -9,6 +9,8 @@
 namespace idi {
 namespace {
 
+constexpr double kMaxFloatLevel = 1e6;  // the largest |grey level| a float image may hold
+
 // Gaussian kernel exactly as cv::GaussianBlur builds it for this sigma (size 2*ceil(3 sigma)+1).
 std::vector<double> GaussianKernelFor(double sigma) {
   const int radius = std::max(1, static_cast<int>(std::ceil(3.0 * sigma)));
@@ -64,6 +66,14 @@ Status ComputeGradients(const cv::Mat& image, double smoothing_sigma_px, Gradien
     if (!cv::checkRange(image)) {
       return InvalidArgument("float image contains NaN or infinite values");
     }
+    // Grey levels (the twin's float images are 0..255 DN): far larger values (a no-data marker of 1e30)
+    // would overflow the gradient's square.
+    double lo = 0, hi = 0;
+    cv::minMaxLoc(image, &lo, &hi);
+    if (lo < -kMaxFloatLevel || hi > kMaxFloatLevel) {
+      return InvalidArgument("float image has values up to " + std::to_string(std::max(-lo, hi)) +
+                             "; grey levels beyond +-1e6 are not an image");
+    }
   }
   out->level_scale = depth == CV_16U ? 257.0 : 1.0;
   out->smoothing_sigma_px = smoothing_sigma_px;
@@ -113,8 +123,9 @@ Status ComputeGradients(const cv::Mat& image, double smoothing_sigma_px, Gradien
     }
     if ((y & 1) == 0 && y > 0 && y < h - 1) {
       for (int xs = 2; xs < w - 1; xs += 2) {
-        const int b = static_cast<int>(std::sqrt(m2[xs]) * inv_bin_width);
-        ++hist[static_cast<std::size_t>(std::min(b, kBins - 1))];
+        // Clamped as a float: the cast of a value beyond int's range is undefined.
+        const int b = static_cast<int>(std::min(std::sqrt(m2[xs]) * inv_bin_width, static_cast<float>(kBins - 1)));
+        ++hist[static_cast<std::size_t>(b)];
         ++samples;
       }
     }

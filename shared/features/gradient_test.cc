@@ -118,6 +118,12 @@ TEST(GradientTest, RejectsBadImagesWithAClearMessage) {
   nan.at<float>(3, 4) = std::numeric_limits<float>::quiet_NaN();
   s = ComputeGradients(nan, 1.0, &g);
   EXPECT_NE(s.message().find("NaN"), std::string::npos);
+  // A no-data marker of -3e38 next to 0: its gradient's square overflows (the noise histogram's bin was
+  // an out-of-range cast, a write far before the histogram).
+  cv::Mat huge(32, 32, CV_32F, cv::Scalar(0));
+  huge.at<float>(10, 10) = -3e38f;
+  s = ComputeGradients(huge, 1.0, &g);
+  EXPECT_NE(s.message().find("1e6"), std::string::npos) << s.message();
   // 16-bit is accepted, with thresholds scaled to its range.
   EXPECT_TRUE(ComputeGradients(cv::Mat(32, 32, CV_16U, cv::Scalar(1000)), 1.0, &g).ok());
   EXPECT_DOUBLE_EQ(g.level_scale, 257.0);

@@ -124,6 +124,38 @@ TEST(CliIntegrationTest, FeaturesRefusesATransposedK) {
   std::filesystem::remove_all(dir);
 }
 
+// features with --camera over several images: one that does not fit the camera (too small for the
+// detector) is that image's error line, and the images after it are still processed; two images with
+// the same file name get two overlays.
+TEST(CliIntegrationTest, FeaturesReportsABadImageAndGoesOn) {
+  const std::string dir = MakeTempDir("features_many_cli");
+  std::filesystem::create_directories(dir + "/a");
+  std::filesystem::create_directories(dir + "/b");
+  auto pgm = [](const std::string& path, int size) {
+    std::ofstream img(path, std::ios::binary);
+    img << "P5\n" << size << " " << size << "\n255\n";
+    for (int y = 0; y < size; ++y) {
+      for (int x = 0; x < size; ++x) {
+        img.put(static_cast<char>(x >= size / 4 && x < 3 * size / 4 && y >= size / 4 && y < 3 * size / 4 ? 200 : 40));
+      }
+    }
+  };
+  pgm(dir + "/tiny.pgm", 8);
+  pgm(dir + "/a/square.pgm", 64);
+  pgm(dir + "/b/square.pgm", 64);
+  std::ofstream(dir + "/cam.yaml") << "K: [60, 0, 31.5, 0, 60, 31.5, 0, 0, 1]\ndistortion: [-0.1, 0, 0, 0, 0]\n";
+  const auto r = RunCommand(kWorkcell + " features " + dir + "/tiny.pgm " + dir + "/a/square.pgm " + dir +
+                            "/b/square.pgm --camera " + dir + "/cam.yaml --json --overlay " + dir + "/out");
+  EXPECT_EQ(r.exit_code, 2) << r.err;  // one image failed
+  EXPECT_NE(r.out.find("tiny.pgm: camera image size 8 x 8 is too small\",\"image\""), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("a/square.pgm\",\"lines\""), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("b/square.pgm\",\"lines\""), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("1 of 3 images"), std::string::npos) << r.err;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/out/square_features.png"));
+  EXPECT_TRUE(std::filesystem::exists(dir + "/out/square_2_features.png"));
+  std::filesystem::remove_all(dir);
+}
+
 TEST(CliIntegrationTest, RmpFootprint) {
   const auto r = RunCommand(kRmp + " fov --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;

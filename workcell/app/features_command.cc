@@ -6,10 +6,12 @@
 
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "shared/features/features.h"
 #include "shared/features/pixel_geometry.h"
@@ -156,7 +158,11 @@ void DrawPiece(cv::Mat& img, const PixelGeometry& geometry, const Eigen::Vector2
   }
 }
 
-Status WriteOverlay(const std::string& dir, const std::string& image_path, const cv::Mat& image, const FeatureResult& r,
+Status WriteOverlay(const std::string& dir,
+                    const std::string& image_path,
+                    const std::string& out_name,
+                    const cv::Mat& image,
+                    const FeatureResult& r,
                     const PixelGeometry& geometry) {
   cv::Mat grey8;
   if (image.depth() == CV_16U) {
@@ -186,7 +192,7 @@ Status WriteOverlay(const std::string& dir, const std::string& image_path, const
   if (!cv::imencode(".png", canvas, png)) {
     return IoError("could not encode the overlay of " + image_path + " as PNG");
   }
-  const std::string out = (std::filesystem::path(dir) / (std::filesystem::path(image_path).stem().string() + "_features.png")).string();
+  const std::string out = (std::filesystem::path(dir) / out_name).string();
   IDI_RETURN_IF_ERROR(WriteFileAtomically(out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size())));
   spdlog::info("wrote overlay {}", out);
   return Status::Ok();
@@ -212,11 +218,16 @@ Status RunFeatures(const FeaturesCliOptions& o) {
   int last_w = 0, last_h = 0;
   std::size_t failed = 0;
   Status first_error = Status::Ok();
+  std::map<std::string, int> overlay_names;  // a/cam.png and b/cam.png: cam_features.png, cam_2_features.png
   for (const std::string& path : o.images) {
     cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
     Status status = Status::Ok();
     if (image.empty()) {
       status = InvalidArgument(fmt::format("{}: cannot read the image (missing file or not an image format)", path));
+    } else if ((image.channels() == 3 || image.channels() == 4) && image.depth() != CV_8U && image.depth() != CV_16U &&
+               image.depth() != CV_32F) {
+      status = InvalidArgument(
+          fmt::format("{}: colour image of pixel depth {} (expected 8-bit, 16-bit or float)", path, image.depth()));
     } else if (image.channels() == 3 || image.channels() == 4) {
       spdlog::info("{}: colour image converted to grey", path);
       cv::Mat grey;
@@ -226,20 +237,37 @@ Status RunFeatures(const FeaturesCliOptions& o) {
     Result<FeatureResult> result = status.ok() ? Result<FeatureResult>(InvalidArgument("unset")) : status;
     if (status.ok()) {
       // One detector per image size (the undistortion map is per size).
-      if (!detector || image.cols != last_w || image.rows != last_h) {
+      if (camera && cam_w > 0 && (cam_w != image.cols || cam_h != image.rows)) {
+        // Before the detector is made: its undistortion map has the camera file's size.
+        status = InvalidArgument(fmt::format("{}: the image is {} x {} px, the camera file {} is for {} x {} px",
+                                             path,
+                                             image.cols,
+                                             image.rows,
+                                             o.camera_file,
+                                             cam_w,
+                                             cam_h));
+      } else if (!detector || image.cols != last_w || image.rows != last_h) {
         if (camera) {
           camera->width = cam_w > 0 ? cam_w : image.cols;
           camera->height = cam_h > 0 ? cam_h : image.rows;
         }
-        IDI_ASSIGN_OR_RETURN(FeatureDetector d, FeatureDetector::Create(options, camera));
-        detector.emplace(std::move(d));
-        geometry = camera ? PixelGeometry(*camera) : PixelGeometry();
-        last_w = image.cols;
-        last_h = image.rows;
+        // A detector this image cannot have (too small for it, a distortion that folds at its size) is
+        // this image's error; the next image gets its own.
+        Result<FeatureDetector> d = FeatureDetector::Create(options, camera);
+        detector.reset();
+        last_w = last_h = 0;
+        if (!d.ok()) {
+          status = d.status().WithContext(path);
+        } else {
+          detector.emplace(std::move(d).value());
+          geometry = camera ? PixelGeometry(*camera) : PixelGeometry();
+          last_w = image.cols;
+          last_h = image.rows;
+        }
       }
-      result = detector->Detect(image);
-      if (!result.ok()) {
-        status = result.status().WithContext(path);
+      if (status.ok()) {
+        result = detector->Detect(image);
+        if (!result.ok()) status = result.status().WithContext(path);
       }
     }
     if (!status.ok()) {
@@ -264,7 +292,10 @@ Status RunFeatures(const FeaturesCliOptions& o) {
                                r.noise_sigma);
     }
     if (!o.overlay_dir.empty()) {
-      IDI_RETURN_IF_ERROR(WriteOverlay(o.overlay_dir, path, image, r, geometry));
+      const std::string stem = std::filesystem::path(path).stem().string();
+      const int n = ++overlay_names[stem];
+      const std::string name = (n == 1 ? stem : fmt::format("{}_{}", stem, n)) + "_features.png";
+      IDI_RETURN_IF_ERROR(WriteOverlay(o.overlay_dir, path, name, image, r, geometry));
     }
   }
   if (failed > 0 && o.images.size() > 1) {
