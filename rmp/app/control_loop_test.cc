@@ -3,13 +3,16 @@
 // a track that ends - and in every run the vehicle never drives on stale data.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 
 #include "rmp/app/replay_run.h"
 #include "rmp/app/sim_run.h"
+#include "shared/replay/drive_log.h"
 
 namespace idi::rmp {
 namespace {
@@ -299,6 +302,34 @@ TEST(ClosedLoopTest, ReplayingARecordingReproducesItsCommands) {
   EXPECT_TRUE(rep->report.completed);
   EXPECT_EQ(rep->report.frames, res->report.frames);
   EXPECT_TRUE(fs::exists(dir / "replay.log"));
+  EXPECT_EQ(rep->ticks_resynced, 0u);  // the twin's schedule and its frames' stamps agree to the ns
+  {
+    // On the vehicle the first frame is stamped a few microseconds after the clock reading that starts
+    // the driver's schedule: the replay starts at the first tick, not at the first frame.
+    const fs::path can = fs::path(o.record_dir) / replay::kDriveLogCanFile;
+    std::ifstream in(can);
+    std::stringstream text;
+    std::string line;
+    bool shifted = false;
+    while (std::getline(in, line)) {
+      if (!shifted && line.size() > 19 && line[0] == '(' && line[11] == '.' && line[18] == ')') {
+        const long long us = std::stoll(line.substr(1, 10)) * 1000000LL + std::stoll(line.substr(12, 6)) + 5;
+        char stamp[32];
+        std::snprintf(stamp, sizeof(stamp), "(%010lld.%06lld)", us / 1000000LL, us % 1000000LL);
+        line = stamp + line.substr(19);
+        shifted = true;
+      }
+      text << line << "\n";
+    }
+    ASSERT_TRUE(shifted);
+    in.close();
+    std::ofstream(can) << text.str();
+    auto late = RunReplay({o.record_dir, (dir / "replay_late.log").string()});
+    ASSERT_TRUE(late.ok()) << late.status().ToString();
+    EXPECT_EQ(late->ticks_matching, late->ticks_compared);
+    EXPECT_EQ(late->ticks_compared, rep->ticks_compared);
+    EXPECT_GE(late->can_frames_matching + 1, late->can_frames_compared);  // the moved frame, 5 us off
+  }
   // Metadata of the wrong type in recording.json: refused naming the key, not a JSON exception.
   const fs::path rec = fs::path(o.record_dir) / "recording.json";
   nlohmann::json j;

@@ -82,10 +82,7 @@ Result<RunReport> RunHardware(const HardwareRunOptions& o) {
   }
   CameraFrames frames(std::move(cams));
   IDI_ASSIGN_OR_RETURN(std::unique_ptr<TrackPerception> perception, TrackPerception::Create(config.rig, config.perception));
-  IDI_ASSIGN_OR_RETURN(std::unique_ptr<RmpDriver> driver, RmpDriver::Create(bus.get(), &clock, config.driver));
-  drivers::SocketCanBus* raw_bus = bus.get();
-  driver->SetBusRecovery([raw_bus] { return raw_bus->Restart(); });
-  driver->SetEventSink([](int64_t, const std::string& e) { spdlog::info("rmp driver: {}", e); });
+  // The log before the driver: the driver's destructor logs its last zero command, also on an early return.
   std::unique_ptr<replay::DriveLogWriter> log;
   if (!o.record_dir.empty()) {
     RecordingHeader header;
@@ -95,6 +92,10 @@ Result<RunReport> RunHardware(const HardwareRunOptions& o) {
     header.meta = {{"source", "hardware"}, {"config_yaml", o.config_text}, {"cruise_speed_mps", config.planner.cruise_speed_mps}};
     IDI_ASSIGN_OR_RETURN(log, replay::DriveLogWriter::Create(o.record_dir, header));
   }
+  IDI_ASSIGN_OR_RETURN(std::unique_ptr<RmpDriver> driver, RmpDriver::Create(bus.get(), &clock, config.driver));
+  drivers::SocketCanBus* raw_bus = bus.get();
+  driver->SetBusRecovery([raw_bus] { return raw_bus->Restart(); });
+  driver->SetEventSink([](int64_t, const std::string& e) { spdlog::info("rmp driver: {}", e); });
   ControlLoop loop(config.control, &clock, driver.get(), &frames, perception.get(), config.planner, config.track, log.get());
   IDI_RETURN_IF_ERROR(loop.Start());
   NotifyReady();

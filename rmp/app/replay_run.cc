@@ -77,20 +77,24 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   IDI_RETURN_IF_ERROR(config.perception.Check());
   IDI_ASSIGN_OR_RETURN(std::unique_ptr<TrackPerception> perception, TrackPerception::Create(config.rig, config.perception));
 
-  // The clock starts where the log does; the driver's own frames are compared, not delivered.
+  // The clock starts where the log does (its first frame or its first tick, whichever is earlier: on the
+  // vehicle the schedule's clock reading comes before the first frame's stamp, in microseconds); the
+  // driver's own frames are compared, not delivered.
   int64_t start_ns = log.can.front().frame.timestamp_ns;
+  if (!log.ticks.empty()) start_ns = std::min(start_ns, log.ticks.front().t_ns);
   hal::SimClock clock(start_ns);
   replay::CanLogReplayOptions ro;
   ro.own_ids = {kRmpIdCommand, kRmpIdShutdown};
   replay::CanLogReplayBus bus(log.can, &clock, ro);
-  IDI_ASSIGN_OR_RETURN(std::unique_ptr<RmpDriver> driver, RmpDriver::Create(&bus, &clock, config.driver));
+  // Before the driver: its destructor's last zero command goes to this log, also on an early return.
   std::unique_ptr<replay::CandumpWriter> can_out;
   if (!o.can_log.empty()) {
     replay::CandumpWriterOptions co;
     co.mark_direction = true;
     IDI_ASSIGN_OR_RETURN(can_out, replay::CandumpWriter::Open(o.can_log, co));
-    driver->SetFrameLog(can_out.get());
   }
+  IDI_ASSIGN_OR_RETURN(std::unique_ptr<RmpDriver> driver, RmpDriver::Create(&bus, &clock, config.driver));
+  if (can_out) driver->SetFrameLog(can_out.get());
   LogFrames frames(&log);
   ControlLoop loop(config.control, &clock, driver.get(), &frames, perception.get(), config.planner, config.track, nullptr);
   IDI_RETURN_IF_ERROR(loop.Start());
@@ -101,6 +105,12 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   uint64_t pairs_with_track = 0;
   bool moving = false;
   for (const replay::DriveTickRecord& want : log.ticks) {
+    // The recorded run's schedule: its start and every move after a late tick.
+    if (driver->next_send_ns() != want.t_ns) {
+      const Status st = driver->ResyncSchedule(want.t_ns);
+      if (!st.ok()) return Internal(o.dir + ": the log's ticks are out of order: " + st.message());
+      ++result.ticks_resynced;
+    }
     IDI_ASSIGN_OR_RETURN(const TickRecord got, loop.Step());
     if (got.t_ns != want.t_ns) {
       return Internal(o.dir + ": replay tick at " + std::to_string(got.t_ns) + " ns, the log's at " + std::to_string(want.t_ns) +
@@ -163,6 +173,7 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   r.extra["track_visible_reference"] = "stereo pairs in which the track was perceived";
   r.extra["ticks_compared"] = result.ticks_compared;
   r.extra["ticks_matching"] = result.ticks_matching;
+  r.extra["ticks_resynced"] = result.ticks_resynced;
   r.extra["can_frames_compared"] = result.can_frames_compared;
   r.extra["can_frames_matching"] = result.can_frames_matching;
   r.extra["can_frames_logged"] = logged.size();

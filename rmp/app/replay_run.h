@@ -18,6 +18,7 @@ struct ReplayOptions {
 struct ReplayResult {
   RunReport report;
   uint64_t ticks_compared = 0, ticks_matching = 0;
+  uint64_t ticks_resynced = 0;  // ticks whose time the driver's schedule did not give (a late tick on the vehicle)
   uint64_t can_frames_compared = 0, can_frames_matching = 0;
   double max_speed_difference_mps = 0.0, max_yaw_rate_difference_rps = 0.0;
 };

@@ -595,6 +595,15 @@ void RmpDriver::Tick(int64_t now) {
   }
 }
 
+Status RmpDriver::ResyncSchedule(int64_t t_ns) {
+  if (t_ns < clock_->NowNs()) {
+    return InvalidArgument("RMP driver: a tick at " + std::to_string(t_ns) + " ns is before now (" +
+                           std::to_string(clock_->NowNs()) + " ns)");
+  }
+  next_send_ns_ = t_ns;
+  return Status::Ok();
+}
+
 void RmpDriver::MaybeTick(int64_t now) {
   if (!Sending() || now < next_send_ns_) return;
   if (now - next_send_ns_ >= period_ns_) ++health_.counters.late_ticks;

@@ -228,6 +228,10 @@ class RmpDriver {
   const RmpCommandScaling& scaling() const { return scaling_; }
   const RmpDriverOptions& options() const { return options_; }
   int64_t next_send_ns() const { return next_send_ns_; }
+  // Replay: the next tick at t_ns (not before now), as a recording's schedule had it. On the vehicle the
+  // schedule starts at one clock reading and moves after a late tick, which a replay's clock cannot
+  // reproduce by itself. InvalidArgument for a time already past.
+  Status ResyncSchedule(int64_t t_ns);
   int64_t period_ns() const { return period_ns_; }
   // The last `n` frames sent (kept for tests and decision logs).
   const std::deque<RmpSentCommand>& recent_sent() const { return recent_sent_; }
