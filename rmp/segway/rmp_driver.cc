@@ -97,6 +97,9 @@ Status RmpDriverOptions::Check() const {
     return InvalidArgument("RMP driver: max_input_future_s must be >= 0");
   }
   IDI_RETURN_IF_ERROR(CheckPositiveValue("status_timeout_s", status_timeout_s));
+  if (!(std::isfinite(reconfigure_after_silence_s) && reconfigure_after_silence_s > status_timeout_s)) {
+    return InvalidArgument("RMP driver: reconfigure_after_silence_s must be finite and longer than status_timeout_s");
+  }
   // The RMP sends status at 100 Hz and keeps a command for about 0.4 s: a longer silence is a lost
   // machine, and the same holds for the age of the data a command comes from.
   if (max_input_age_s > 1.0 || status_timeout_s > 0.5) {
@@ -542,13 +545,19 @@ void RmpDriver::Tick(int64_t now) {
       }
       health_.config_verified = matches;
       if (!matches) Event("RMP did not confirm the operational mode and gain schedule; continuing");
-      if (options_.reset_integrators) {
+      if (reconfiguring_) {
+        // Integrators that start again from zero are a jump the odometry takes as a new reference.
+        reconfiguring_ = false;
+        running_since_ns_ = now;
+        SetState(RmpDriverState::kRunning, "configured again");
+      } else if (options_.reset_integrators) {
         SetState(RmpDriverState::kResettingOdometry, "integrator reset");
         reset_started_ns_ = now;
         reset_frames_left_ = options_.config_repeats;
       } else {
         odometry_.Reset();
         health_.odometry_reset = OdometryResetResult::kNotRequested;
+        running_since_ns_ = now;
         SetState(RmpDriverState::kRunning, "configured");
       }
       break;
@@ -572,11 +581,36 @@ void RmpDriver::Tick(int64_t now) {
       health_.odometry_reset = zeroed ? OdometryResetResult::kConfirmed : OdometryResetResult::kSoftwareOffset;
       if (!zeroed) Event("integrator reset not confirmed; odometry uses a software offset");
       odometry_.Reset();
+      running_since_ns_ = now;
       SetState(RmpDriverState::kRunning, std::string("odometry ") + OdometryResetResultName(health_.odometry_reset));
       UpdateInhibits(now);
       break;
     }
-    case RmpDriverState::kRunning:
+    case RmpDriverState::kRunning: {
+      const bool long_silence =
+          health_.last_status_ns >= 0 &&
+          static_cast<double>(now - health_.last_status_ns) * 1e-9 > options_.reconfigure_after_silence_s;
+      const bool mode_changed =
+          health_.config_verified && status_.mode_ns > running_since_ns_ &&
+          (status_.mode.mode != options_.operational_mode || status_.mode.gain_schedule != options_.gain_schedule);
+      if (long_silence || mode_changed) {
+        // A zero this tick; motion again once the RMP has its configuration back.
+        ++health_.counters.reconfigurations;
+        reconfiguring_ = true;
+        if (long_silence) {
+          SetState(RmpDriverState::kConnecting,
+                   "no status for " + DriverSeconds(now - health_.last_status_ns) +
+                       ": the RMP may have rebooted; configuring it again when it answers");
+        } else {
+          SetState(
+              RmpDriverState::kConfiguring,
+              std::string("the RMP reports mode ") + OperationalModeName(status_.mode.mode) + ": configuring it again");
+          QueueConfiguration();
+          mode_attempts_ = 0;
+        }
+        UpdateInhibits(now);
+        break;
+      }
       if (health_.inhibit == 0 && command_) {
         const RmpMotionCounts c = MotionToCounts(command_->speed_mps, command_->yaw_rate_rps, scaling_);
         if (c.velocity_saturated || c.turn_saturated) ++health_.counters.saturated_commands;
@@ -585,6 +619,7 @@ void RmpDriver::Tick(int64_t now) {
         source_ns = command_->source_timestamp_ns;
       }
       break;
+    }
     case RmpDriverState::kShuttingDown:
       --shutdown_frames_left_;
       break;

@@ -59,6 +59,10 @@ struct RmpDriverOptions {
   int config_repeats = 2;               // each configuration frame is sent this many times
   int mode_retries = 3;                 // mode/gain resent when 0x406 disagrees
   double config_verify_timeout_s = 0.3;
+  // While running, no status for this long (longer than status_timeout_s): the RMP may have rebooted
+  // with its boot scales and mode, so it is configured again when it answers before it may move.
+  // A running RMP whose 0x406 shows another mode or gain schedule than the one it confirmed is too.
+  double reconfigure_after_silence_s = 0.5;
 
   bool reset_integrators = true;
   double integrator_reset_timeout_s = 1.0;  // then fall back to a software offset
@@ -118,6 +122,7 @@ struct RmpDriverCounters {
   uint64_t stale_commands_refused = 0, invalid_commands = 0, saturated_commands = 0;
   uint64_t status_timeouts = 0, bus_off_events = 0, bus_restart_requests = 0;
   uint64_t odometry_rejected = 0, log_errors = 0, late_ticks = 0;
+  uint64_t reconfigurations = 0;  // configured again while running (a long silence, a changed mode)
 };
 
 enum class OdometryResetResult { kPending, kConfirmed, kSoftwareOffset, kNotRequested };
@@ -274,6 +279,8 @@ class RmpDriver {
   // Configuration and reset.
   std::deque<RmpConfigRequest> config_queue_;
   int mode_attempts_ = 0;
+  bool reconfiguring_ = false;     // configuring again after running: the odometry keeps its pose
+  int64_t running_since_ns_ = -1;  // when the driver last reached running
   int64_t config_sent_ns_ = -1;
   int64_t reset_started_ns_ = -1;
   int64_t reset_sent_ns_ = -1;

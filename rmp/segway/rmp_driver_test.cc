@@ -208,6 +208,30 @@ TEST(RmpDriverTest, CommandsZeroWhenStatusStopsAndResumesWhenItReturns) {
   EXPECT_NEAR(b.rmp.vehicle().truth().speed_mps, 0.5, 0.01);
 }
 
+// An RMP that reboots mid-run (silent for a second, then back with its boot velocity scale of 3/4, its
+// boot mode and integrators at zero) is configured again before it moves: without that, every speed
+// would be off by the scale the driver set at start-up and no longer holds.
+TEST(RmpDriverTest, AnRmpThatRebootedIsConfiguredAgainBeforeItMoves) {
+  DriverBench b;
+  b.StartAndWait();
+  b.Fresh(b.clock.NowNs() + 1500 * kDrvMs, 0.5, 0.0);
+  ASSERT_DOUBLE_EQ(b.rmp.velocity_scale(), 1.0);
+  const uint64_t config_frames = b.driver->health().counters.config_frames;
+  b.rmp.SetSilent(true);
+  b.rmp.Reboot();
+  b.Fresh(b.clock.NowNs() + 1000 * kDrvMs, 0.5, 0.0);
+  EXPECT_NE(b.driver->health().state, RmpDriverState::kRunning);
+  EXPECT_EQ(b.driver->health().counters.reconfigurations, 1u);
+  b.rmp.SetSilent(false);
+  b.Fresh(b.clock.NowNs() + 2000 * kDrvMs, 0.5, 0.0);
+  EXPECT_EQ(b.driver->health().state, RmpDriverState::kRunning) << b.driver->health().last_event;
+  EXPECT_GT(b.driver->health().counters.config_frames, config_frames);
+  EXPECT_DOUBLE_EQ(b.rmp.velocity_scale(), 1.0);
+  EXPECT_EQ(b.rmp.mode(), RmpDriverOptions{}.operational_mode);
+  EXPECT_NEAR(b.rmp.vehicle().truth().speed_mps, 0.5, 0.01);  // at 3/4 scale it would be 0.375
+  EXPECT_EQ(b.driver->health().counters.reconfigurations, 1u);
+}
+
 TEST(RmpDriverTest, BusOffInhibitsRecoversThroughTheHookAndResumes) {
   DriverBench b;
   b.StartAndWait();

@@ -72,6 +72,25 @@ SimRmp::SimRmp(sim::VirtualCanBus* bus, const SimRmpOptions& options)
   bus_->AddProcess(this);
 }
 
+void SimRmp::Reboot() {
+  mode_ = options_.boot_mode;
+  gain_ = options_.boot_gain_schedule;
+  velocity_scale_ = options_.boot_velocity_scale;
+  accel_scale_ = options_.boot_accel_scale;
+  turn_scale_ = options_.boot_turn_scale;
+  current_limit_scale_ = 1.0;
+  balance_locked_out_ = false;
+  firmware_scaling_.velocity_scale_fraction = velocity_scale_;
+  firmware_scaling_.turn_scale_fraction = turn_scale_;
+  vehicle_.SetSpeedScale(velocity_scale_);
+  vehicle_.SetAccelScale(accel_scale_);
+  vehicle_.SetTurnScale(turn_scale_);
+  vehicle_.SetBalanceMode(mode_ == OperationalMode::kBalance);
+  vehicle_.ResetIntegrators(true, true, true, true);
+  left_base_ = right_base_ = fore_aft_base_ = yaw_base_ = 0;
+  UpdateMotorsEnabled();
+}
+
 void SimRmp::SetInjectedStatusBits(uint16_t word1, uint16_t word2) {
   injected_word1_ = word1;
   injected_word2_ = word2;

@@ -87,6 +87,9 @@ class SimRmp final : public sim::SimProcess {
   // Extra bits in status words 1 and 2 (e.g. kRmpStatus1MotorFeedbackFault). Fault bits also stop
   // the motors, as the firmware would.
   void SetInjectedStatusBits(uint16_t word1, uint16_t word2);
+  // A power cycle (a brown-out, an e-stop reset): the boot scales, mode and gain schedule again, and
+  // integrators counting from zero. Combine with SetSilent for the seconds it takes to boot.
+  void Reboot();
 
  private:
   void HandleFrame(const hal::CanFrame& frame);
