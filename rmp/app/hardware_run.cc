@@ -4,6 +4,7 @@
 
 #include <chrono>
 
+#include "rmp/app/camera_frames.h"
 #include "shared/runtime/systemd_notify.h"
 
 #if IDI_RMP_HARDWARE
@@ -18,29 +19,6 @@ namespace idi::rmp {
 
 #if IDI_RMP_HARDWARE
 namespace {
-
-// The two cameras (V4L2 or libcamera): every frame each has ready, without waiting.
-class CameraFrames final : public FrameSource {
- public:
-  explicit CameraFrames(std::vector<std::unique_ptr<hal::CameraDevice>> cams) : cams_(std::move(cams)) {}
-  Result<std::vector<hal::Image>> Collect(int64_t /*now_ns*/) override {
-    std::vector<hal::Image> out;
-    for (auto& cam : cams_) {
-      for (int k = 0; k < 8; ++k) {  // drain what is queued, never block
-        auto img = cam->Grab(std::chrono::milliseconds(0));
-        if (!img.ok()) {
-          if (img.status().code() != StatusCode::kTimeout) spdlog::warn("camera {}: {}", cam->name(), img.status().ToString());
-          break;
-        }
-        out.push_back(std::move(*img));
-      }
-    }
-    return out;
-  }
-
- private:
-  std::vector<std::unique_ptr<hal::CameraDevice>> cams_;
-};
 
 // The camera device a config entry names (its backend was checked by RmpConfig::Check).
 Result<std::unique_ptr<hal::CameraDevice>> MakeCamera(const CameraDeviceConfig& c) {
@@ -70,7 +48,7 @@ Result<RunReport> RunHardware(const HardwareRunOptions& o) {
   drivers::SocketCanOptions can_options;
   can_options.interface = config.can_interface;
   IDI_ASSIGN_OR_RETURN(std::unique_ptr<drivers::SocketCanBus> bus, drivers::SocketCanBus::Open(can_options, &clock));
-  std::vector<std::unique_ptr<hal::CameraDevice>> cams;
+  std::vector<CameraFrames::Camera> cams;
   for (const CameraDeviceConfig& c : config.cameras) {
     IDI_ASSIGN_OR_RETURN(std::unique_ptr<hal::CameraDevice> cam, MakeCamera(c));
     hal::CameraSettings s;
@@ -78,7 +56,7 @@ Result<RunReport> RunHardware(const HardwareRunOptions& o) {
     s.height = c.height;
     s.gray = true;
     IDI_RETURN_IF_ERROR(cam->Start(s).WithContext("camera " + c.name));
-    cams.push_back(std::move(cam));
+    cams.push_back({std::move(cam), s});
   }
   CameraFrames frames(std::move(cams));
   IDI_ASSIGN_OR_RETURN(std::unique_ptr<TrackPerception> perception, TrackPerception::Create(config.rig, config.perception));
