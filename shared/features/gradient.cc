@@ -10,6 +10,7 @@ namespace idi {
 namespace {
 
 constexpr double kMaxFloatLevel = 1e6;  // the largest |grey level| a float image may hold
+constexpr int kMaxSidePx = 16384;
 
 // Gaussian kernel exactly as cv::GaussianBlur builds it for this sigma (size 2*ceil(3 sigma)+1).
 std::vector<double> GaussianKernelFor(double sigma) {
@@ -61,6 +62,12 @@ Status ComputeGradients(const cv::Mat& image, double smoothing_sigma_px, Gradien
   if (image.cols < 16 || image.rows < 16) {
     return InvalidArgument("image of " + std::to_string(image.cols) + " x " + std::to_string(image.rows) +
                            " px is smaller than the minimum 16 x 16 px");
+  }
+  // The Hough accumulator counts votes in 16 bits: a line's length (at most the diagonal, 23170 px
+  // here) must stay below 65535.
+  if (image.cols > kMaxSidePx || image.rows > kMaxSidePx) {
+    return InvalidArgument("image of " + std::to_string(image.cols) + " x " + std::to_string(image.rows) +
+                           " px is larger than the maximum " + std::to_string(kMaxSidePx) + " px a side");
   }
   if (depth == CV_32F) {
     if (!cv::checkRange(image)) {

@@ -112,6 +112,8 @@ TEST(GradientTest, RejectsBadImagesWithAClearMessage) {
   EXPECT_NE(s.message().find("3 channels"), std::string::npos) << s.message();
   s = ComputeGradients(cv::Mat(8, 100, CV_8U, cv::Scalar(0)), 1.0, &g);
   EXPECT_NE(s.message().find("100 x 8"), std::string::npos) << s.message();
+  s = ComputeGradients(cv::Mat(16, 70000, CV_8U, cv::Scalar(0)), 1.0, &g);  // a line-scan strip
+  EXPECT_NE(s.message().find("maximum 16384"), std::string::npos) << s.message();
   s = ComputeGradients(cv::Mat(32, 32, CV_64F, cv::Scalar(0)), 1.0, &g);
   EXPECT_EQ(s.code(), StatusCode::kInvalidArgument);
   cv::Mat nan(32, 32, CV_32F, cv::Scalar(0));
