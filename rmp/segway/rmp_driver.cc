@@ -414,7 +414,12 @@ void RmpDriver::UpdateInhibits(int64_t now) {
   }
   status_was_fresh_ = fresh;
   health_.status_fresh = fresh;
-  if (!fresh) m |= kRmpInhibitStatusStale;
+  // The battery voltages and the mode come in 0x406, one frame of the 100 Hz cycle: while running,
+  // a cycle without it for status_timeout_s is stale status too (the battery check would hold its
+  // last reading for good).
+  const bool mode_fresh =
+      status_.mode_ns >= 0 && static_cast<double>(now - status_.mode_ns) * 1e-9 <= options_.status_timeout_s;
+  if (!fresh || (health_.state == RmpDriverState::kRunning && !mode_fresh)) m |= kRmpInhibitStatusStale;
   if (health_.bus_off) m |= kRmpInhibitBusOff;
   if (receive_failing_) m |= kRmpInhibitBusError;
 

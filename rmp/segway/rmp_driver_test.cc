@@ -232,6 +232,23 @@ TEST(RmpDriverTest, AnRmpThatRebootedIsConfiguredAgainBeforeItMoves) {
   EXPECT_EQ(b.driver->health().counters.reconfigurations, 1u);
 }
 
+// The mode and battery frame (0x406) alone missing from the cycle: the battery can no longer be watched,
+// so the vehicle stops until it is back.
+TEST(RmpDriverTest, MissingModeFramesStopTheVehicle) {
+  DriverBench b;
+  b.StartAndWait();
+  b.Fresh(b.clock.NowNs() + 1000 * kDrvMs, 0.5, 0.0);
+  ASSERT_TRUE(b.driver->health().motion_allowed());
+  b.rmp.SetModeFrameMissing(true);
+  b.Fresh(b.clock.NowNs() + 1000 * kDrvMs, 0.5, 0.0);
+  EXPECT_TRUE(b.driver->health().inhibit & kRmpInhibitStatusStale);
+  EXPECT_NEAR(b.rmp.vehicle().truth().speed_mps, 0.0, 0.05);
+  b.rmp.SetModeFrameMissing(false);
+  b.Fresh(b.clock.NowNs() + 2000 * kDrvMs, 0.5, 0.0);
+  EXPECT_TRUE(b.driver->health().motion_allowed());
+  EXPECT_NEAR(b.rmp.vehicle().truth().speed_mps, 0.5, 0.01);
+}
+
 TEST(RmpDriverTest, BusOffInhibitsRecoversThroughTheHookAndResumes) {
   DriverBench b;
   b.StartAndWait();

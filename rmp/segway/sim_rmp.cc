@@ -233,7 +233,7 @@ void SimRmp::SendStatusCycle() {
   mode.gain_schedule = gain_;
   mode.ui_battery_v = s.ui_battery_v;
   mode.base_battery_v = std::max(0.0, s.base_battery_v);
-  send(codec_.Encode(mode));
+  if (!mode_missing_) send(codec_.Encode(mode));
   send(codec_.Encode(echo_));
   if (cycle_ % static_cast<uint64_t>(options_.cu_status_every_cycles) == 0) {
     RmpCuStatusFrame cu;

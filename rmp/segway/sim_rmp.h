@@ -84,6 +84,8 @@ class SimRmp final : public sim::SimProcess {
   void SetSilent(bool silent) { silent_ = silent; }
   // Every status frame but the wheel integrators (0x403) is sent: a fault for the odometry's watchdog.
   void SetWheelIntegratorsMissing(bool missing) { integrators_missing_ = missing; }
+  // Every status frame but the mode and battery frame (0x406).
+  void SetModeFrameMissing(bool missing) { mode_missing_ = missing; }
   // Extra bits in status words 1 and 2 (e.g. kRmpStatus1MotorFeedbackFault). Fault bits also stop
   // the motors, as the firmware would.
   void SetInjectedStatusBits(uint16_t word1, uint16_t word2);
@@ -116,6 +118,7 @@ class SimRmp final : public sim::SimProcess {
   // Reported integrator = base + counts of the twin's measured value.
   uint32_t left_base_, right_base_, fore_aft_base_, yaw_base_;
   bool silent_ = false;
+  bool mode_missing_ = false;
   bool integrators_missing_ = false;
   bool powered_down_ = false;
   uint16_t injected_word1_ = 0, injected_word2_ = 0;
