@@ -62,6 +62,11 @@ SimRmp::SimRmp(sim::VirtualCanBus* bus, const SimRmpOptions& options)
   firmware_scaling_.velocity_counts_per_mps = codec_.scales().wheel_speed_counts_per_mps;
   firmware_scaling_.turn_counts_per_radps = options_.turn_counts_per_radps;
   firmware_scaling_.turn_sign = options_.turn_sign;
+  ApplyScalesAndMode();
+  bus_->AddProcess(this);
+}
+
+void SimRmp::ApplyScalesAndMode() {
   firmware_scaling_.velocity_scale_fraction = velocity_scale_;
   firmware_scaling_.turn_scale_fraction = turn_scale_;
   vehicle_.SetSpeedScale(velocity_scale_);
@@ -69,7 +74,6 @@ SimRmp::SimRmp(sim::VirtualCanBus* bus, const SimRmpOptions& options)
   vehicle_.SetTurnScale(turn_scale_);
   vehicle_.SetBalanceMode(mode_ == OperationalMode::kBalance);
   UpdateMotorsEnabled();
-  bus_->AddProcess(this);
 }
 
 void SimRmp::Reboot() {
@@ -80,15 +84,9 @@ void SimRmp::Reboot() {
   turn_scale_ = options_.boot_turn_scale;
   current_limit_scale_ = 1.0;
   balance_locked_out_ = false;
-  firmware_scaling_.velocity_scale_fraction = velocity_scale_;
-  firmware_scaling_.turn_scale_fraction = turn_scale_;
-  vehicle_.SetSpeedScale(velocity_scale_);
-  vehicle_.SetAccelScale(accel_scale_);
-  vehicle_.SetTurnScale(turn_scale_);
-  vehicle_.SetBalanceMode(mode_ == OperationalMode::kBalance);
   vehicle_.ResetIntegrators(true, true, true, true);
   left_base_ = right_base_ = fore_aft_base_ = yaw_base_ = 0;
-  UpdateMotorsEnabled();
+  ApplyScalesAndMode();
 }
 
 void SimRmp::SetInjectedStatusBits(uint16_t word1, uint16_t word2) {

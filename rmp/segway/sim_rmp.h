@@ -98,6 +98,7 @@ class SimRmp final : public sim::SimProcess {
   void ApplyConfig(uint16_t id, uint16_t param);
   void SendStatusCycle();
   void UpdateMotorsEnabled();
+  void ApplyScalesAndMode();  // the firmware's scaling and the twin's limits from the current settings
 
   SimRmpOptions options_;
   RmpCodec codec_;
