@@ -73,9 +73,9 @@ const char* DecisionName(Decision d) {
 }
 
 Status ControlLoopOptions::Check() const {
-  if (!(max_perception_age_s > 0 && max_perception_age_s <= kMaxPerceptionAgeLimitS)) {
+  if (!(max_perception_age_s > 0 && max_perception_age_s <= kMaxInputAgeLimitS)) {
     return InvalidArgument("control: max_perception_age_s = " + std::to_string(max_perception_age_s) +
-                           " must be in (0, " + std::to_string(kMaxPerceptionAgeLimitS) + "] s");
+                           " must be in (0, " + std::to_string(kMaxInputAgeLimitS) + "] s");
   }
   if (!(max_odometry_age_s > 0 && max_odometry_age_s <= kMaxOdometryAgeLimitS)) {
     return InvalidArgument("control: max_odometry_age_s = " + std::to_string(max_odometry_age_s) + " must be in (0, " +

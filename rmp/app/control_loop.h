@@ -44,9 +44,8 @@ class FrameSource {
   virtual Result<std::vector<hal::Image>> Collect(int64_t now_ns) = 0;
 };
 
-// Upper bounds of the ages below that a configuration may set: data this old is no ground for motion
-// (1 s at 1 m/s is a metre driven blind), and a larger value in a file is a typo, not a choice.
-inline constexpr double kMaxPerceptionAgeLimitS = 1.0;
+// Upper bounds of the ages below that a configuration may set (the perception's is the driver's input
+// age, kMaxInputAgeLimitS): a larger value in a file is a typo, not a choice.
 inline constexpr double kMaxOdometryAgeLimitS = 0.5;
 inline constexpr double kTrackLostLimitS = 5.0;
 

@@ -100,12 +100,11 @@ Status RmpDriverOptions::Check() const {
   if (!(std::isfinite(reconfigure_after_silence_s) && reconfigure_after_silence_s > status_timeout_s)) {
     return InvalidArgument("RMP driver: reconfigure_after_silence_s must be finite and longer than status_timeout_s");
   }
-  // The RMP sends status at 100 Hz and keeps a command for about 0.4 s: a longer silence is a lost
-  // machine, and the same holds for the age of the data a command comes from.
-  if (max_input_age_s > 1.0 || status_timeout_s > 0.5) {
-    return InvalidArgument("RMP driver: max_input_age_s = " + std::to_string(max_input_age_s) +
-                           " (at most 1 s) and status_timeout_s = " + std::to_string(status_timeout_s) +
-                           " (at most 0.5 s): longer is driving on stale data");
+  if (max_input_age_s > kMaxInputAgeLimitS || status_timeout_s > kStatusTimeoutLimitS) {
+    return InvalidArgument("RMP driver: max_input_age_s = " + std::to_string(max_input_age_s) + " (at most " +
+                           std::to_string(kMaxInputAgeLimitS) +
+                           " s) and status_timeout_s = " + std::to_string(status_timeout_s) + " (at most " +
+                           std::to_string(kStatusTimeoutLimitS) + " s): longer is driving on stale data");
   }
   IDI_RETURN_IF_ERROR(CheckFraction("velocity_scale", velocity_scale, 1.0 / 16.0 - 1e-9));
   IDI_RETURN_IF_ERROR(CheckFraction("accel_scale", accel_scale, 0.0));

@@ -35,6 +35,12 @@
 
 namespace idi::rmp {
 
+// The largest ages a configuration may set: data this old is no ground for motion (1 s at 1 m/s is a
+// metre driven blind). The RMP sends status at 100 Hz and keeps a command about 0.4 s, so a longer
+// silence is a lost machine. The control loop's perception age is the driver's input age.
+inline constexpr double kMaxInputAgeLimitS = 1.0;
+inline constexpr double kStatusTimeoutLimitS = 0.5;
+
 struct RmpDriverOptions {
   RmpCodecOptions codec;  // model (default RMP 200) and yaw sign conventions
   // Command scaling; 0 = the model's wheel-speed scale (332 counts per m/s on an RMP 200).
