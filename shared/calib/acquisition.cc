@@ -261,7 +261,21 @@ Result<AimLoopResult> AimClosedLoop(const ParamSet& robot, const ParamSet& laser
                                     const JointMover& move, const SpotObserver& observe, const AimLoopOptions& o) {
   IDI_RETURN_IF_ERROR(o.Check());
   AimLoopResult out;
-  IDI_ASSIGN_OR_RETURN(out.reading, move(Clamp(start, limits, o.limit_margin_rad)));
+  // A reading or a spot that is not finite is a device's fault, not a miss: it would turn into a NaN
+  // joint command.
+  auto move_checked = [&](const Joints& q) -> Result<Joints> {
+    IDI_ASSIGN_OR_RETURN(const Joints reading, move(q));
+    for (const double v : reading) {
+      if (!std::isfinite(v)) return DeviceError("closed-loop aiming: the arm's joint reading is not finite");
+    }
+    return reading;
+  };
+  auto observe_checked = [&]() -> Result<Vec2d> {
+    IDI_ASSIGN_OR_RETURN(const Vec2d spot, observe());
+    if (!spot.allFinite()) return DeviceError("closed-loop aiming: the observed spot position is not finite");
+    return spot;
+  };
+  IDI_ASSIGN_OR_RETURN(out.reading, move_checked(Clamp(start, limits, o.limit_margin_rad)));
   auto correct = [&](const Vec2d& error) -> Result<Joints> {
     const auto j = SpotJacobian(robot, laser, base_from_plane, out.reading);
     if (!j) {
@@ -278,17 +292,17 @@ Result<AimLoopResult> AimClosedLoop(const ParamSet& robot, const ParamSet& laser
     for (std::size_t k = 0; k < 6; ++k) next[k] += dq(static_cast<Eigen::Index>(k));
     next = Clamp(next, limits, o.limit_margin_rad);
     if (o.round_to_encoder_counts) next = NearestCountsForSpot(next, out.reading, *j, error);
-    return move(next);
+    return move_checked(next);
   };
   for (out.iterations = 0; out.iterations < o.max_iterations; ++out.iterations) {
-    IDI_ASSIGN_OR_RETURN(const Vec2d spot, observe());
+    IDI_ASSIGN_OR_RETURN(const Vec2d spot, observe_checked());
     const Vec2d error = target_on_plane - spot;
     out.last_error_mm = error.norm();
     if (out.last_error_mm <= o.tolerance_mm) {
       Vec2d e = error;
       for (int c = 0; c < o.final_corrections; ++c) {
         if (c > 0) {
-          IDI_ASSIGN_OR_RETURN(const Vec2d again, observe());
+          IDI_ASSIGN_OR_RETURN(const Vec2d again, observe_checked());
           e = target_on_plane - again;
         }
         IDI_ASSIGN_OR_RETURN(out.reading, correct(e));

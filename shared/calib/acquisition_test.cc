@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
 #include <random>
 
 #include "shared/calib/calib_test_util.h"
@@ -83,6 +85,38 @@ TEST(AcquisitionTest, ClosedLoopDrivesTheSpotOntoTheTarget) {
     ASSERT_TRUE(true_spot.has_value());
     EXPECT_LT((*true_spot - target).norm(), 0.3);  // a few sigma of the camera noise
     EXPECT_LT(r->iterations, 10);
+  }
+}
+
+// A spot camera or an arm that returns a non-finite value is a device fault (DeviceError), never a
+// NaN joint command: before, a NaN spot went through the clamp and the count rounding into move().
+TEST(AcquisitionTest, ANonFiniteSpotOrReadingIsADeviceFaultAndNoNaNIsCommanded) {
+  const ParamSet robot = Rx130Nominal(), laser = LaserNominal();
+  Rigid3d base_from_wall;
+  base_from_wall.rotation << 1, 0, 0, 0, 0, -1, 0, 1, 0;
+  base_from_wall.translation = Vec3d(0, 4000, 0);
+  const Vec2d target(600, 150);
+  const auto starts =
+      PlanAimConfigurations(robot, laser, base_from_wall * Vec3d(target.x(), target.y(), 0), 1, Rx130JointLimits(), {});
+  ASSERT_TRUE(starts.ok() && !starts->empty());
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const bool bad_spot : {true, false}) {
+    int moves = 0;
+    bool nan_commanded = false;
+    JointMover move = [&](const Joints& q) -> Result<Joints> {
+      ++moves;
+      for (const double v : q) nan_commanded |= !std::isfinite(v);
+      Joints r = QuantizeToEncoders(q);
+      if (!bad_spot && moves == 2) r[3] = nan;  // the second reading is garbage
+      return r;
+    };
+    SpotObserver observe = [&]() -> Result<Vec2d> { return bad_spot ? Vec2d(nan, 10.0) : Vec2d(0.0, 0.0); };
+    const auto r =
+        AimClosedLoop(robot, laser, base_from_wall, target, starts->front(), Rx130JointLimits(), move, observe, {});
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.status().code(), StatusCode::kDeviceError) << r.status().ToString();
+    EXPECT_FALSE(nan_commanded);
+    EXPECT_EQ(moves, bad_spot ? 1 : 2);
   }
 }
 

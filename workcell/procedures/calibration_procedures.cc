@@ -37,6 +37,31 @@ Status CheckDevices(const ArmDevices& d, const char* which) {
   return Status::Ok();
 }
 
+// A configuration whose spot could not be brought onto its point: the loop did not converge, the spot
+// was not seen on the wall, or a joint limit was in the way. The acquisition goes on with the next.
+// Any other error (a device that timed out or reported a fault, a spot camera that failed, a cancel)
+// ends it.
+bool IsAimingMiss(const Status& s) {
+  return s.code() == StatusCode::kNotConverged || s.code() == StatusCode::kNotFound ||
+         s.code() == StatusCode::kOutOfRange;
+}
+
+// Ends an acquisition on a device fault: stops the arms and rails and turns the lasers off (best
+// effort; the fault is what is returned), and says how far the acquisition got.
+Status AbortAcquisition(const std::vector<ArmDevices*>& devices,
+                        const Status& fault,
+                        const std::string& what,
+                        int readings_taken) {
+  for (ArmDevices* d : devices) {
+    if (const Status s = d->arm->Stop(); !s.ok()) spdlog::error("{}: stopping the arm: {}", what, s.ToString());
+    if (const Status s = d->rail->Stop(); !s.ok()) spdlog::error("{}: stopping the rail: {}", what, s.ToString());
+    if (const Status s = d->laser->SetOn(false); !s.ok()) {
+      spdlog::error("{}: turning the laser off: {}", what, s.ToString());
+    }
+  }
+  return fault.WithContext(fmt::format("{}: stopped after {} readings", what, readings_taken));
+}
+
 double ScaledCondition(const Eigen::MatrixXd& info) {
   const Eigen::VectorXd d = info.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(d.asDiagonal() * info * d.asDiagonal());
@@ -184,6 +209,12 @@ Result<RobotAcquisition> AcquireRobotData(ArmDevices& dev, int arm_index, const 
       if (c.set != s + 1) continue;
       IDI_RETURN_IF_ERROR(CheckCancel(o.cancelled, fmt::format("robot {}: acquisition", arm_index + 1)));
       const auto q = aim(base_from_wall[static_cast<std::size_t>(s)], targets[static_cast<std::size_t>(s)], c.q);
+      if (!q.ok() && !IsAimingMiss(q.status())) {
+        return AbortAcquisition({&dev},
+                                q.status(),
+                                fmt::format("robot {}: acquisition", arm_index + 1),
+                                static_cast<int>(out.data.readings.size()));
+      }
       if (!q.ok()) {
         ++out.loop_failures;
         spdlog::debug("robot {}: a configuration could not be aimed: {}", arm_index + 1, q.status().message());
@@ -206,6 +237,12 @@ Result<RobotAcquisition> AcquireRobotData(ArmDevices& dev, int arm_index, const 
     for (const Joints& c : cand) {
       IDI_RETURN_IF_ERROR(CheckCancel(o.cancelled, fmt::format("robot {}: held-out acquisition", arm_index + 1)));
       const auto q = aim(base_from_wall[1], target_h, c);
+      if (!q.ok() && !IsAimingMiss(q.status())) {
+        return AbortAcquisition({&dev},
+                                q.status(),
+                                fmt::format("robot {}: held-out acquisition", arm_index + 1),
+                                static_cast<int>(out.data.readings.size() + out.held_out.size()));
+      }
       if (q.ok()) {
         out.held_out.push_back(*q);
       } else {
@@ -357,6 +394,12 @@ Result<RailAcquisition> AcquireRailData(ArmDevices& d1, ArmDevices& d2, const Ce
       auto observe = [&]() { return d.observe(c.wall); };
       const auto r = calib::AimClosedLoop(m.robot, m.laser, bfw, c.on_wall, k == 0 ? planned->q1 : planned->q2, limits,
                                           move, observe, o.loop);
+      if (!r.ok() && !IsAimingMiss(r.status())) {
+        return AbortAcquisition({&d1, &d2},
+                                r.status(),
+                                fmt::format("rail: acquisition (robot {})", k + 1),
+                                static_cast<int>(out.readings.size()));
+      }
       if (!r.ok()) {
         ok = false;
         break;

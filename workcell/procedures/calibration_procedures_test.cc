@@ -91,6 +91,86 @@ TEST(CalibrationProceduresTest, AcquisitionsStopWhenCancelled) {
   EXPECT_EQ(polls, 4);
 }
 
+// An arm that fails with a device fault after `good_moves` moves (a collision, an emergency stop, a
+// controller that stopped answering), and counts its stops.
+class FaultingArm : public hal::ArmDevice {
+ public:
+  FaultingArm(hal::ArmDevice& arm, int good_moves, StatusCode fault)
+      : arm_(arm), good_moves_(good_moves), fault_(fault) {}
+  std::string name() const override { return arm_.name(); }
+  Status MoveJoints(const Joints& q, const hal::MoveOptions& o) override {
+    ++moves;
+    if (moves > good_moves_) return {fault_, name() + ": controller fault"};
+    return arm_.MoveJoints(q, o);
+  }
+  Result<hal::JointState> ReadJoints() override { return arm_.ReadJoints(); }
+  Status Stop() override {
+    ++stops;
+    return arm_.Stop();
+  }
+  int moves = 0, stops = 0;
+
+ private:
+  hal::ArmDevice& arm_;
+  int good_moves_;
+  StatusCode fault_;
+};
+
+// A device fault during an acquisition ends it at once with that fault, the arm stopped and the laser
+// off: it is not an aiming miss to count while the arm is commanded through hundreds more
+// configurations (which ended in NotConverged, a code the service does not take for a fault). Misses
+// (a joint limit, a spot off the wall) still only count.
+TEST(CalibrationProceduresTest, ADeviceFaultEndsAnAcquisition) {
+  for (const StatusCode fault : {StatusCode::kDeviceError, StatusCode::kTimeout}) {
+    sim::WorkcellTwin twin({});
+    FaultingArm arm(twin.arm(0), 40, fault);
+    ArmDevices dev = Devices(twin, 0);
+    dev.arm = &arm;
+    RobotAcquisitionOptions o;
+    o.per_set = 75;
+    o.held_out = 30;
+    const auto acq = AcquireRobotData(dev, 0, TwinCellSetup(twin), calib::ArmModel{}, o);
+    ASSERT_FALSE(acq.ok());
+    EXPECT_EQ(acq.status().code(), fault) << acq.status().ToString();
+    EXPECT_NE(acq.status().message().find("robot 1: acquisition: stopped after"), std::string::npos)
+        << acq.status().ToString();
+    EXPECT_EQ(arm.moves, 41) << "no move after the fault";
+    EXPECT_EQ(arm.stops, 1);
+    EXPECT_FALSE(twin.laser_on(0));
+  }
+  // The rail acquisition likewise, with robot 2's arm failing.
+  sim::WorkcellTwin twin({});
+  FaultingArm arm(twin.arm(1), 25, StatusCode::kDeviceError);
+  ArmDevices d1 = Devices(twin, 0), d2 = Devices(twin, 1);
+  d2.arm = &arm;
+  const calib::ArmModel nominal;
+  RailAcquisitionOptions ro;
+  ro.readings = 60;
+  const auto rail = AcquireRailData(d1, d2, TwinCellSetup(twin), nominal, nominal, ro);
+  ASSERT_FALSE(rail.ok());
+  EXPECT_EQ(rail.status().code(), StatusCode::kDeviceError) << rail.status().ToString();
+  EXPECT_EQ(arm.moves, 26);
+  EXPECT_EQ(arm.stops, 1);
+  EXPECT_FALSE(twin.laser_on(0));
+  EXPECT_FALSE(twin.laser_on(1));
+}
+
+// A joint limit in the way is a miss: the acquisition goes on (and fails only when misses are too many).
+TEST(CalibrationProceduresTest, AJointLimitIsAMissNotAFault) {
+  sim::WorkcellTwin twin({});
+  FaultingArm arm(twin.arm(0), 0, StatusCode::kOutOfRange);
+  ArmDevices dev = Devices(twin, 0);
+  dev.arm = &arm;
+  RobotAcquisitionOptions o;
+  o.per_set = 75;
+  o.held_out = 30;
+  const auto acq = AcquireRobotData(dev, 0, TwinCellSetup(twin), calib::ArmModel{}, o);
+  ASSERT_FALSE(acq.ok());
+  EXPECT_EQ(acq.status().code(), StatusCode::kNotConverged) << acq.status().ToString();
+  EXPECT_EQ(arm.moves, 180) << "every configuration was tried";
+  EXPECT_EQ(arm.stops, 0);
+}
+
 TEST(CalibrationProceduresTest, RailAcquisitionChoosesPointsOnMoreThanOneWall) {
   sim::WorkcellTwinOptions to;
   to.seed = 3;
