@@ -184,7 +184,15 @@ Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points,
   for (int v = 0; v < nv; ++v) {
     const BaView& bv = (*views)[static_cast<std::size_t>(v)];
     poses[static_cast<std::size_t>(v)] = PoseBlock(bv.cam_from_world);
-    if (intrinsics.count(bv.intrinsics_group) == 0) intrinsics[bv.intrinsics_group] = bv.camera.params;
+    const auto [it, first] = intrinsics.emplace(bv.intrinsics_group, bv.camera.params);
+    // A group is one physical camera: its views project with one set of intrinsics, so they must
+    // come with the same ones (before, every view was projected with its group's first view's).
+    if (!first && it->second != bv.camera.params) {
+      return InvalidArgument("bundle adjustment: view " + std::to_string(v) + " is in intrinsics group " +
+                             std::to_string(bv.intrinsics_group) +
+                             " but its camera parameters differ from the group's first view's; give each camera "
+                             "its own group");
+    }
   }
   // One shift per mount index (estimated with mount_prior_mm > 0), and a held zero for views without one.
   const bool mounts = options.mount_prior_mm > 0;
@@ -326,7 +334,7 @@ Result<BundleAdjustmentSummary> BundleAdjust(std::vector<Vec3d>* points,
     // The mount's shift s moves the camera by s * axis: x_cam = R (x - s axis) + t.
     const double s_mm = *shift_of(bv);
     bv.cam_from_world.translation -= bv.cam_from_world.rotation * (s_mm * axis_of(bv));
-    bv.camera.params = intrinsics[bv.intrinsics_group];
+    if (options.refine_intrinsics) bv.camera.params = intrinsics[bv.intrinsics_group];
   }
   if (mounts) summary.mount_shift_mm.assign(shift.begin(), shift.end() - 1);
   summary.plane_offset = plane_offset;

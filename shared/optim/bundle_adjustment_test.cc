@@ -238,6 +238,23 @@ TEST(BundleAdjustmentTest, RobustLossIgnoresAWrongObservation) {
   EXPECT_LT((pts[static_cast<std::size_t>(s.obs[10].point)] - s.truth[static_cast<std::size_t>(s.obs[10].point)]).norm(), 0.15);
 }
 
+// Views in one intrinsics group are one camera: a view whose parameters differ from its group's is
+// refused (before, it was projected with the group's first view's intrinsics, which were then written
+// into its camera). In groups of their own, each view keeps its own intrinsics.
+TEST(BundleAdjustmentTest, ViewsOfOneIntrinsicsGroupMustAgree) {
+  BaScene s = MakeBaScene(1);
+  std::vector<Vec3d> pts = s.truth;
+  auto views = s.views;
+  views[3].camera.params[kFx] += 20;
+  const auto r = BundleAdjust(&pts, &views, s.obs, {});
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(r.status().message().find("view 3 is in intrinsics group 0"), std::string::npos) << r.status().ToString();
+  views[3].intrinsics_group = 1;
+  ASSERT_TRUE(BundleAdjust(&pts, &views, s.obs, {}).ok());
+  EXPECT_EQ(views[3].camera.params[kFx], s.views[3].camera.params[kFx] + 20) << "not refined: left as given";
+}
+
 TEST(BundleAdjustmentTest, BadInput) {
   BaScene s = MakeBaScene(1);
   std::vector<Vec3d> pts = s.truth;

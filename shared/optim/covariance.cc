@@ -57,6 +57,11 @@ Result<CovarianceReport> AnalyzeJacobian(const Eigen::MatrixXd& jacobian, double
     for (Eigen::Index i = 0; i < n; ++i) {
       if (std::abs(v(i, k)) > options.null_component_threshold) undetermined[static_cast<std::size_t>(i)] = true;
     }
+    // A null direction spread thinly over many parameters (every |v_i| under the threshold) still names
+    // its largest component: a rank-deficient Jacobian never comes out with nothing undetermined.
+    Eigen::Index largest = 0;
+    v.col(k).cwiseAbs().maxCoeff(&largest);
+    undetermined[static_cast<std::size_t>(largest)] = true;
   }
   for (Eigen::Index i = 0; i < n; ++i) {
     if (undetermined[static_cast<std::size_t>(i)] || jacobian.col(i).norm() == 0) r.undetermined.push_back(static_cast<int>(i));

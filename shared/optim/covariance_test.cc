@@ -46,6 +46,20 @@ TEST(CovarianceTest, NamesUndeterminedAndCorrelatedParameters) {
   EXPECT_NE(DescribeCorrelations(*r, {"a", "b", "c", "d", "e"}).find("a / e"), std::string::npos);
 }
 
+// A null direction spread over 60 parameters (every component about 1/sqrt(60) = 0.13, under the 0.2
+// that names a parameter): the rank is 59, so at least one parameter is named undetermined, with an
+// infinite std (before, none was, and every std came out finite).
+TEST(CovarianceTest, ASpreadOutNullDirectionStillNamesAParameter) {
+  const Eigen::MatrixXd random = RandomMatrix(200, 60, 5);
+  const Eigen::VectorXd c = Eigen::VectorXd::Ones(60) / std::sqrt(60.0);
+  const Eigen::MatrixXd j = random - (random * c) * c.transpose();  // j c = 0; columns of similar norms
+  const auto r = AnalyzeJacobian(j, 1.0);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->rank, 59);
+  ASSERT_FALSE(r->undetermined.empty());
+  for (const int i : r->undetermined) EXPECT_TRUE(std::isinf(r->stddev(i)));
+}
+
 TEST(CovarianceTest, VarianceFactorAndBadInput) {
   Eigen::VectorXd r(12);
   r.setConstant(2.0);
