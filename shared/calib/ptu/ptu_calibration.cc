@@ -128,8 +128,17 @@ Status FixPtuGauges(PtuSolveState& s, const std::vector<PtuObservation>& obs, co
       scale(j) = norm > 0 ? 1.0 / norm : 0.0;  // a column of zeros: a parameter the data never touch
     }
     const Eigen::MatrixXd js = eval.jacobian * scale.asDiagonal();
+    // Fewer residuals than parameters: the data cannot determine them (and the SVD below would have
+    // fewer singular values than columns).
+    if (js.rows() < n) {
+      return InvalidArgument(
+          fmt::format("too few observations: {} residuals (2 per observation) for {} free parameters; take more poses",
+                      js.rows(),
+                      n));
+    }
     Eigen::JacobiSVD<Eigen::MatrixXd> svd(js, Eigen::ComputeThinV);
     const Eigen::VectorXd& sv = svd.singularValues();
+    if (!(sv(0) > 0)) return FailedPrecondition("the observations do not constrain the parameters");
     const double s_max = sv(0);
     Eigen::VectorXd v;
     double rel = 1;

@@ -200,6 +200,16 @@ TEST(PtuCalibration, BadDataGivesAClearMessage) {
     EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
     EXPECT_NE(r.status().message().find("too few poses"), std::string::npos) << r.status().message();
   }
+  {  // fewer residuals than parameters with the per-camera minimum lowered to 1 (before: an SVD read
+     // past its singular values)
+    std::vector<PtuObservation> few(d.calibration.begin(), d.calibration.begin() + 10);
+    PtuCalibrationOptions o;
+    o.min_observations_per_camera = 1;
+    const auto r = CalibratePtu(few, {}, o);
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_NE(r.status().message().find("too few observations"), std::string::npos) << r.status().message();
+  }
   {  // a pose outside the PTU's range
     std::vector<PtuObservation> obs = d.calibration;
     obs[7].tilt_rad = DegToRad(40.0);
