@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <vector>
 
@@ -226,13 +227,19 @@ Result<RailCalibrationResult> CalibrateRail(const std::vector<RailReading>& read
     const auto st = ClosestPointsBetweenLines(a, b, 1e-9);
     return std::pair<double, double>(DistanceBetweenLines(a, b), st ? 0.5 * (st->first + st->second) : 0.0);
   };
-  for (int round = 0; round <= o.max_outlier_rounds; ++round) {
+  auto solve = [&](const optim::Loss& loss) -> Status {
     RailBuilt b;
-    BuildRail(psi, readings, arm1, arm2, sigma, active,
-              round == 0 ? optim::Loss{optim::LossKind::kCauchy, 3.0} : optim::Loss{}, &b);
+    BuildRail(psi, readings, arm1, arm2, sigma, active, loss, &b);
     IDI_ASSIGN_OR_RETURN(out.summary, optim::SolveLevenbergMarquardt(b.problem, o.solver));
     out.cost_per_iteration.insert(out.cost_per_iteration.end(), out.summary.cost_per_iteration.begin(),
                                   out.summary.cost_per_iteration.end());
+    return Status::Ok();
+  };
+  // Whether the last solve was not plain least squares over the readings now active: the robust one,
+  // or one before the last round left readings out.
+  bool refit = false;
+  for (int round = 0; round <= o.max_outlier_rounds; ++round) {
+    IDI_RETURN_IF_ERROR(solve(round == 0 ? optim::Loss{optim::LossKind::kCauchy, 3.0} : optim::Loss{}));
     std::vector<double> w;
     for (std::size_t i = 0; i < readings.size(); ++i) {
       if (active[i]) w.push_back(residual_mm(i).first / sigma[i]);
@@ -250,8 +257,20 @@ Result<RailCalibrationResult> CalibrateRail(const std::vector<RailReading>& read
         changed = true;
       }
     }
+    refit = changed || round == 0;
     if (!changed && round > 0) break;
   }
+  // The readings kept must still meet the minimum (outlier rounds may have left out many).
+  const int kept = static_cast<int>(std::count(active.begin(), active.end(), true));
+  if (kept < needed) {
+    return FailedPrecondition(
+        "rail calibration: " + std::to_string(out.outliers.size()) + " readings were left out as outliers (and " +
+        std::to_string(static_cast<int>(readings.size()) - kept - static_cast<int>(out.outliers.size())) +
+        " carry no information); the " + std::to_string(kept) + " kept are too few (" + std::to_string(needed) +
+        " needed)");
+  }
+  // psi is the least-squares fit of the readings kept.
+  if (refit) IDI_RETURN_IF_ERROR(solve(optim::Loss{}));
   RailBuilt b;
   BuildRail(psi, readings, arm1, arm2, sigma, active, {}, &b);
   IDI_ASSIGN_OR_RETURN(const optim::DenseEvaluation ev, optim::EvaluateDense(b.problem));
@@ -319,6 +338,10 @@ Result<RailCalibrationResult> CalibrateRail(const std::vector<RailReading>& read
   for (int k = 0; k < kRobotToRobotParamCount; ++k) {
     out.psi.set_value(static_cast<std::size_t>(k), psi[static_cast<std::size_t>(k)]);
     out.psi.set_stddev(static_cast<std::size_t>(k), std::sqrt(std::max(0.0, cov(k, k))));
+  }
+  // What the data cannot determine has no finite std (the pseudo-inverse gives one).
+  for (const int k : out.identifiability.undetermined) {
+    out.psi.set_stddev(static_cast<std::size_t>(k), std::numeric_limits<double>::infinity());
   }
   return out;
 }

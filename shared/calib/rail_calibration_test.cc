@@ -111,6 +111,32 @@ TEST(RailCalibrationTest, PointsOnOneWallConfoundPsiZAndPsiAlpha) {
   EXPECT_GT((*one)(kPsiZ, kPsiZ), 4.0 * (*two)(kPsiZ, kPsiZ));
 }
 
+// Readings that all aim at one point cannot determine every psi: those the analysis names
+// undetermined get an infinite std in the result (before, the pseudo-inverse's finite value).
+TEST(RailCalibrationTest, UndeterminedPsiHaveNoFiniteStd) {
+  const ArmModel a1 = PerturbedArm(23), a2 = PerturbedArm(24);
+  const auto data = ExactRailData(a1, a2, {kTwoWalls[0]}, 40, 8);
+  const auto r = CalibrateRail(data, a1, a2, {});
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  ASSERT_FALSE(r->identifiability.undetermined.empty()) << r->Summary();
+  for (const int k : r->identifiability.undetermined) {
+    EXPECT_TRUE(std::isinf(r->psi.stddev(static_cast<std::size_t>(k)))) << k;
+  }
+}
+
+// The minimum number of readings holds for the readings kept: six of 25 readings with robot 2's rail
+// reading 30 mm off are left out, and the 19 kept are under the 20 needed.
+TEST(RailCalibrationTest, TooFewReadingsLeftAfterTheOutliersIsAFailure) {
+  const ArmModel a1 = PerturbedArm(25), a2 = PerturbedArm(26);
+  auto data = ExactRailData(a1, a2, kTwoWalls, 25, 7);
+  for (int i = 0; i < 6; ++i) data[static_cast<std::size_t>(3 * i + 1)].rail2_mm += 30.0;
+  const auto r = CalibrateRail(data, a1, a2, {});
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kFailedPrecondition) << r.status().ToString();
+  EXPECT_NE(r.status().message().find("6 readings were left out as outliers"), std::string::npos)
+      << r.status().message();
+}
+
 TEST(RailCalibrationTest, TooFewOrNanReadingsAreRefused) {
   const ArmModel a1 = PerturbedArm(25), a2 = PerturbedArm(26);
   auto data = ExactRailData(a1, a2, kTwoWalls, 19, 7);

@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <random>
 #include <sstream>
@@ -210,13 +211,12 @@ Attempt SolveFrom(const Unknowns& start, const RobotCalibrationData& d, const Ro
   a.weights = Weights(a.u, d, o.noise);
   a.active.assign(d.readings.size(), true);
   optim::SolverOptions so = o.solver;
-  for (int round = 0; round <= o.max_outlier_rounds; ++round) {
+  // Staged starts hold some robot parameters at their start values (a staged start's first stage).
+  bool any_fixed = false;
+  for (bool f : free_robot) any_fixed |= !f;
+  auto solve = [&](const optim::Loss& loss) -> bool {
     Built b;
-    const optim::Loss loss = round == 0 ? optim::Loss{optim::LossKind::kCauchy, 3.0} : optim::Loss{};
     Build(a.u, d, a.weights, a.active, loss, &b);
-    // Staged starts hold some robot parameters at their start values (a staged start's first stage).
-    bool any_fixed = false;
-    for (bool f : free_robot) any_fixed |= !f;
     if (any_fixed) {
       // A parameter block is all or nothing in the problem; hold the block and let the others move.
       b.problem.SetConstant(a.u.robot.data());
@@ -224,11 +224,18 @@ Attempt SolveFrom(const Unknowns& start, const RobotCalibrationData& d, const Ro
     auto s = optim::SolveLevenbergMarquardt(b.problem, so);
     if (!s.ok()) {
       a.why = s.status().message();
-      return a;
+      return false;
     }
     a.summary = *s;
     starts->push_back(static_cast<int>(history->size()));
     history->insert(history->end(), s->cost_per_iteration.begin(), s->cost_per_iteration.end());
+    return true;
+  };
+  // Whether the last solve was not plain least squares over the readings now active: the robust one,
+  // or one before the last round left readings out.
+  bool refit = false;
+  for (int round = 0; round <= o.max_outlier_rounds; ++round) {
+    if (!solve(round == 0 ? optim::Loss{optim::LossKind::kCauchy, 3.0} : optim::Loss{})) return a;
     if (any_fixed) break;
     const std::vector<ReadingFit> fits = Fits(a.u, d, a.weights);
     const double sigma = RobustSigma(fits, a.active);
@@ -240,8 +247,11 @@ Attempt SolveFrom(const Unknowns& start, const RobotCalibrationData& d, const Ro
         changed = true;
       }
     }
+    refit = changed || round == 0;
     if (!changed && round > 0) break;
   }
+  // The parameters (and the covariance at them) are the least-squares fit of the readings kept.
+  if (refit && !solve(optim::Loss{})) return a;
   const ResidualStats st = Stats(Fits(a.u, d, a.weights), a.active, 0);
   if (!a.summary.usable) {
     a.why = "solver: " + a.summary.message;
@@ -251,6 +261,34 @@ Attempt SolveFrom(const Unknowns& start, const RobotCalibrationData& d, const Ro
     a.accepted = true;
   }
   return a;
+}
+
+// §4.3.2's minimums again over the readings kept once the outliers are left out: a set emptied by
+// the outlier rounds leaves phi and the scale undetermined.
+Status CheckInliers(const RobotCalibrationData& d, const std::vector<bool>& active, const RobotCalibrationOptions& o) {
+  std::array<int, 2> per_set = {0, 0};
+  int kept = 0;
+  for (std::size_t i = 0; i < d.readings.size(); ++i) {
+    if (!active[i]) continue;
+    ++per_set[static_cast<std::size_t>(d.readings[i].set - 1)];
+    ++kept;
+  }
+  const int left_out = static_cast<int>(d.readings.size()) - kept;
+  const int needed = o.min_readings_per_unknown * kRobotCalibrationUnknowns;
+  if (kept < needed) {
+    return FailedPrecondition("robot calibration: " + std::to_string(left_out) +
+                              " readings were left out as outliers; the " + std::to_string(kept) +
+                              " kept are too few (" + std::to_string(needed) + " needed)");
+  }
+  for (std::size_t s = 0; s < 2; ++s) {
+    if (per_set[s] < o.min_readings_per_set) {
+      return FailedPrecondition("robot calibration: " + std::to_string(left_out) +
+                                " readings were left out as outliers; set " + std::to_string(s + 1) + " keeps " +
+                                std::to_string(per_set[s]) + ", need at least " +
+                                std::to_string(o.min_readings_per_set));
+    }
+  }
+  return Status::Ok();
 }
 
 }  // namespace
@@ -433,6 +471,7 @@ Result<RobotCalibrationResult> CalibrateRobot(const RobotCalibrationData& data, 
     return NotConverged("robot calibration: no acceptable solution after " + std::to_string(out.restarts) +
                         " restarts: " + best.why);
   }
+  IDI_RETURN_IF_ERROR(CheckInliers(data, best.active, o));
   Unknowns& u = best.u;
   out.summary = best.summary;
   // Outliers: readings left out, with their miss at the solution.
