@@ -324,6 +324,10 @@ Result<std::vector<GraspPlan>> PlanTopGrasps(const std::vector<Vec3d>& points,
   if (points.size() < 3) {
     return InvalidArgument("grasp planning: need at least 3 model points, got " + std::to_string(points.size()));
   }
+  if (!std::isfinite(table_z_mm)) {
+    // A NaN height would turn off the height and clearance checks: contacts below the table top.
+    return InvalidArgument("grasp planning: the table height is not finite");
+  }
   double z_top = -1e300;
   for (const Vec3d& p : points) {
     if (!p.allFinite()) return InvalidArgument("grasp planning: a model point is not finite");

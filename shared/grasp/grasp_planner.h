@@ -15,6 +15,7 @@
 // and a small aperture.
 #pragma once
 
+#include <cmath>
 #include <optional>
 #include <utility>
 #include <vector>
@@ -41,9 +42,26 @@ struct GraspOptions {
   double table_clearance_mm = 8.0;  // fingertips stay this far above the table
   double approach_mm = 120.0;       // approach from this far above the grasp
   double lift_mm = 150.0;
+  // Every value finite (a NaN compares false, and a NaN clearance turned the table checks off), the
+  // clearance not negative.
   bool Check() const {
-    return friction > 0 && top_layer_mm >= 0 && grasp_depth_mm > 0 && approach_mm > 0 && lift_mm > 0 &&
-           hand.max_aperture_mm > hand.min_aperture_mm;
+    const double all[] = {friction,
+                          top_layer_mm,
+                          grasp_depth_mm,
+                          table_clearance_mm,
+                          approach_mm,
+                          lift_mm,
+                          hand.max_aperture_mm,
+                          hand.min_aperture_mm,
+                          hand.finger_spacing_mm,
+                          hand.finger_width_mm,
+                          hand.finger_reach_mm,
+                          hand.palm_to_flange_mm};
+    for (const double v : all) {
+      if (!std::isfinite(v)) return false;
+    }
+    return friction > 0 && top_layer_mm >= 0 && grasp_depth_mm > 0 && table_clearance_mm >= 0 && approach_mm > 0 &&
+           lift_mm > 0 && hand.max_aperture_mm > hand.min_aperture_mm;
   }
 };
 

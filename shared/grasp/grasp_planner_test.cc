@@ -235,6 +235,18 @@ TEST(GraspPlannerTest, BadInput) {
   pts[3].x() = NAN;
   EXPECT_EQ(PlanTopGrasp(pts, 0.0).status().code(), StatusCode::kInvalidArgument);
   EXPECT_EQ(PlanTopGrasp(BoxPoints(Vec3d::Zero(), Vec3d(80, 60, 5), 0), 0.0).status().code(), StatusCode::kNotFound);
+  // A 10 mm high box: a NaN table height, or a NaN or negative clearance, turned the height and
+  // clearance checks off, and the contacts came out below the table top (reported as a grasp).
+  const auto flat = BoxPoints(Vec3d::Zero(), Vec3d(80, 60, 10), 0);
+  EXPECT_EQ(PlanTopGrasp(flat, NAN).status().code(), StatusCode::kInvalidArgument);
+  for (const double clearance : {static_cast<double>(NAN), -20.0}) {
+    GraspOptions o;
+    o.table_clearance_mm = clearance;
+    EXPECT_EQ(PlanTopGrasp(flat, 0.0, o).status().code(), StatusCode::kInvalidArgument) << clearance;
+  }
+  GraspOptions o;
+  o.hand.finger_reach_mm = INFINITY;
+  EXPECT_EQ(PlanTopGrasp(flat, 0.0, o).status().code(), StatusCode::kInvalidArgument);
 }
 
 TEST(GraspPlannerTest, ConvexHull) {

@@ -376,8 +376,12 @@ Status ScanOptions::Check() const {
   for (double a : extra_azimuths_deg) {
     if (!std::isfinite(a)) return InvalidArgument("scan: the second round's station azimuths must be finite");
   }
-  if (!(object_region_radius_mm > 0 && object_region_height_mm > 0)) {
-    return InvalidArgument("scan: the object region's radius and height must be positive");
+  if (!(object_region_radius_mm > 0 && object_region_height_mm > 0) || !std::isfinite(object_region_radius_mm) ||
+      !std::isfinite(object_region_height_mm)) {
+    return InvalidArgument("scan: the object region's radius and height must be positive and finite");
+  }
+  if (!(rail1_max_mm > 0 && std::isfinite(rail1_max_mm)) || !(rail2_max_mm > 0 && std::isfinite(rail2_max_mm))) {
+    return InvalidArgument("scan: the rails' travel (rail1_max_mm, rail2_max_mm) must be positive and finite");
   }
   if (!(station_step_deg > 0 && station_step_deg <= 90) || station_retries < 0) {
     return InvalidArgument("scan: station_step_deg must be in (0, 90] and station_retries >= 0");
@@ -392,7 +396,7 @@ Status ScanOptions::Check() const {
     return InvalidArgument(fmt::format("scan: view distance {} mm is outside (200, 3000)", view_distance_mm));
   }
   if (!(elevation_deg > 5 && elevation_deg < 89)) return InvalidArgument("scan: elevation must be in (5, 89) deg");
-  if (!std::isfinite(aim_height_mm) || !(table_tolerance_mm >= 0)) {
+  if (!std::isfinite(aim_height_mm) || !(table_tolerance_mm >= 0) || !std::isfinite(table_tolerance_mm)) {
     return InvalidArgument("scan: the aim height and the table tolerance must be finite, the tolerance non-negative");
   }
   if (!(table_height_prior_mm >= 0 && std::isfinite(table_height_prior_mm)) ||
@@ -740,11 +744,12 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
     }
     if (report.cylinder) object_edges.clear();
     auto plans = PlanTopGrasps(object, o.table_centre_world.z(), o.grasp, object_edges, o.grasp_alternatives);
-    no_grasp_fits = !plans.ok() && plans.status().code() == StatusCode::kNotFound && !report.cylinder;
+    no_grasp_fits = !plans.ok() && plans.status().code() == StatusCode::kNotFound;
     return plans;
   };
   auto plans = model_and_grasps();
-  if (no_grasp_fits && !o.extra_azimuths_deg.empty()) {
+  // More views help a polyhedron that lacks faces, not a cylinder (its model is two fitted rims).
+  if (no_grasp_fits && !report.cylinder && !o.extra_azimuths_deg.empty()) {
     spdlog::warn("scan: {}; taking {} more station(s) for the faces the model lacks",
                  plans.status().message(),
                  o.extra_azimuths_deg.size());

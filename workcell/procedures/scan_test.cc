@@ -315,6 +315,23 @@ TEST(ScanTest, CylinderIsFittedFromItsSilhouettesAndTopRimAndPicked) {
   }
 }
 
+// A scan without a pick returns the model even when no grasp fits it, a cylinder too (before, a
+// cylinder the planner refused, here one wider than a hand that opens to 30 mm, ended the scan with the
+// planner's NotFound and no model).
+TEST(ScanTest, AScanOnlyCylinderThatNoGraspFitsIsReported) {
+  ScanTwin twin(Twin(sim::ObjectKind::kCylinder, 1));
+  ScanDevices d = twin.Devices();
+  ScanOptions o = twin.SetupOptions();
+  o.pick = false;
+  o.grasp.hand.max_aperture_mm = 30;
+  auto r = ScanAndPick(d, twin.TrueCalibration(), o);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_TRUE(r->cylinder);
+  EXPECT_FALSE(r->grasp_found);
+  EXPECT_FALSE(r->second_round) << "more views do not change a fitted cylinder";
+  EXPECT_NE(r->no_grasp_reason.find("no grasp fits"), std::string::npos) << r->no_grasp_reason;
+}
+
 // The projection matrices follow the encoders: a view's camera is where the chain puts it for the true
 // model (the twin renders from the same chain), up to the rail's repeatability (0.1 mm sigma along it).
 TEST(ScanTest, ChainMatchesTheTwinsCamera) {
@@ -378,6 +395,16 @@ TEST(ScanTest, BadSetUpsAreRejected) {
     r = ScanAndPick(d, twin.TrueCalibration(), o);
     EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
     EXPECT_NE(r.status().message().find("adjusted_outlier_z"), std::string::npos) << r.status().ToString();
+  }
+  // Values that compared true to their bounds but hung the rim search (an infinite region) or made a
+  // clamp's range empty (a negative rail travel), or let any rail position through (NaN).
+  for (int k = 0; k < 4; ++k) {
+    o = twin.SetupOptions();
+    if (k == 0) o.object_region_height_mm = INFINITY;
+    if (k == 1) o.rail1_max_mm = -1;
+    if (k == 2) o.rail2_max_mm = std::nan("");
+    if (k == 3) o.table_tolerance_mm = INFINITY;
+    EXPECT_EQ(ScanAndPick(d, twin.TrueCalibration(), o).status().code(), StatusCode::kInvalidArgument) << k;
   }
   // A table 5 m away: no head pose reaches a view of it; the error names the station.
   o = twin.SetupOptions();
