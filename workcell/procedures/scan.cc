@@ -782,6 +782,14 @@ Result<ScanReport> ScanAndPick(ScanDevices& d, const ScanCalibration& c, const S
   report.grasp_found = true;
   report.grasp = plans->front();
   if (!o.pick) return report;
+  // The model and its grasps go to disk before the arms move: a pick that fails (nothing in reach, a
+  // hand or arm fault) returns only its status, and the scan is not lost with it.
+  if (!o.out_dir.empty()) {
+    const std::string file = (fs::path(o.out_dir) / "scan_before_pick.json").string();
+    if (const Status w = WriteFileAtomically(file, ScanReportJson(report).dump(2) + "\n"); !w.ok()) {
+      spdlog::warn("scan: {}", w.ToString());
+    }
+  }
 
   const double t2 = Seconds();
   if (IsCancelled(o)) return cancelled();

@@ -98,7 +98,7 @@ struct ScanOptions {
   bool pick = true;
   Vec3d place_offset_world = Vec3d(0, 150, 0);  // where to put it down, from where it stood
   hal::MoveOptions move;
-  std::string out_dir;                  // images, overlays, model.ply/json (empty: nothing written)
+  std::string out_dir;                  // images, overlays, model.ply, scan_before_pick.json (empty: nothing written)
   std::function<bool()> cancelled;      // checked between steps
   std::function<void(double, const std::string&)> progress;
   Status Check() const;

@@ -4,10 +4,14 @@
 #include "workcell/procedures/scan.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <utility>
 #include <vector>
@@ -330,6 +334,29 @@ TEST(ScanTest, AScanOnlyCylinderThatNoGraspFitsIsReported) {
   EXPECT_FALSE(r->grasp_found);
   EXPECT_FALSE(r->second_round) << "more views do not change a fitted cylinder";
   EXPECT_NE(r->no_grasp_reason.find("no grasp fits"), std::string::npos) << r->no_grasp_reason;
+}
+
+// A pick that fails (here no rail position lets robot 2 reach the place position, 5 m up) returns only
+// its status; the model and the grasps planned were written before the arm moved, so the scan is not
+// lost with the pick.
+TEST(ScanTest, AFailedPickKeepsTheScanOnDisk) {
+  ScanTwin twin(Twin(sim::ObjectKind::kBox, 2));
+  ScanDevices d = twin.Devices();
+  ScanOptions o = twin.SetupOptions();
+  o.place_offset_world = Vec3d(0, 0, 5000);
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("idi_scan_failed_pick_" + std::to_string(::getpid()));
+  o.out_dir = dir.string();
+  const auto r = ScanAndPick(d, twin.TrueCalibration(), o);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("no rail position of robot 2 reaches"), std::string::npos)
+      << r.status().ToString();
+  std::ifstream in(dir / "scan_before_pick.json");
+  ASSERT_TRUE(in.good()) << "no scan_before_pick.json in " << dir;
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_FALSE(j.at("grasp").is_null());
+  EXPECT_GE(j.at("points").size(), 8u);
+  std::filesystem::remove_all(dir);
 }
 
 // The projection matrices follow the encoders: a view's camera is where the chain puts it for the true
