@@ -36,6 +36,22 @@ TEST(AcquisitionTest, UnreachableTargetsFailClearly) {
   EXPECT_FALSE(q.ok());
 }
 
+// A reading in set 0 or 3 is refused by the selection and the covariance helpers, as by the
+// calibration (before: an abort in the problem's block check, or an index out of range).
+TEST(AcquisitionTest, AReadingOutsideSetsOneAndTwoIsRefused) {
+  const ArmModel arm = testing::PerturbedArm(31);
+  const Vec3d point(500, 4000, 200);
+  RobotCalibrationData pool = testing::ExactRobotData(arm, point, 1000.0, 50, 3);
+  const ParamSet params = PackRobotCalibration(Rx130Nominal(), LaserNominal(), point, ParamSet(RailParamSpecs()));
+  for (const int set : {0, 3}) {
+    pool.readings[7].set = set;
+    const auto s = SelectForConditioning(pool, params, {}, 20);
+    ASSERT_FALSE(s.ok());
+    EXPECT_NE(s.status().message().find("reading 8: set must be 1 or 2"), std::string::npos) << s.status().ToString();
+    EXPECT_EQ(RobotCovarianceAt(pool, params, {}).status().code(), StatusCode::kInvalidArgument);
+  }
+}
+
 TEST(AcquisitionTest, SelectionImprovesTheConditioning) {
   const ArmModel arm = testing::PerturbedArm(31);
   const Vec3d point(500, 4000, 200);

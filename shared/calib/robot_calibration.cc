@@ -263,6 +263,25 @@ Attempt SolveFrom(const Unknowns& start, const RobotCalibrationData& d, const Ro
   return a;
 }
 
+// Every reading in set 1 or 2 with finite joints (the problem's blocks and the selection's sets follow
+// the set: another value made them disagree, an abort).
+Status CheckReadings(const RobotCalibrationData& d, const std::string& what) {
+  for (std::size_t i = 0; i < d.readings.size(); ++i) {
+    const AimReading& r = d.readings[i];
+    const std::string where =
+        "reading " + std::to_string(i + 1) + (r.row > 0 ? " (line " + std::to_string(r.row) + ")" : "");
+    if (r.set != 1 && r.set != 2) {
+      return InvalidArgument(what + ": " + where + ": set must be 1 or 2, got " + std::to_string(r.set));
+    }
+    for (std::size_t j = 0; j < r.q.size(); ++j) {
+      if (!std::isfinite(r.q[j])) {
+        return InvalidArgument(what + ": " + where + ": joint " + std::to_string(j + 1) + " is not a finite number");
+      }
+    }
+  }
+  return Status::Ok();
+}
+
 // §4.3.2's minimums again over the readings kept once the outliers are left out: a set emptied by
 // the outlier rounds leaves phi and the scale undetermined.
 Status CheckInliers(const RobotCalibrationData& d, const std::vector<bool>& active, const RobotCalibrationOptions& o) {
@@ -355,20 +374,9 @@ Status ValidateRobotCalibrationData(const RobotCalibrationData& d, const RobotCa
     return InvalidArgument("robot calibration: the known distance must be a positive number of mm, got " +
                            std::to_string(d.distance_mm));
   }
+  IDI_RETURN_IF_ERROR(CheckReadings(d, "robot calibration"));
   std::array<int, 2> per_set{0, 0};
-  for (std::size_t i = 0; i < d.readings.size(); ++i) {
-    const AimReading& r = d.readings[i];
-    const std::string where = "reading " + std::to_string(i + 1) + (r.row > 0 ? " (line " + std::to_string(r.row) + ")" : "");
-    if (r.set != 1 && r.set != 2) {
-      return InvalidArgument("robot calibration: " + where + ": set must be 1 or 2, got " + std::to_string(r.set));
-    }
-    for (std::size_t j = 0; j < r.q.size(); ++j) {
-      if (!std::isfinite(r.q[j])) {
-        return InvalidArgument("robot calibration: " + where + ": joint " + std::to_string(j + 1) + " is not a finite number");
-      }
-    }
-    ++per_set[static_cast<std::size_t>(r.set - 1)];
-  }
+  for (const AimReading& r : d.readings) ++per_set[static_cast<std::size_t>(r.set - 1)];
   const int needed = o.min_readings_per_unknown * kRobotCalibrationUnknowns;
   if (static_cast<int>(d.readings.size()) < needed) {
     return InvalidArgument("robot calibration: " + std::to_string(d.readings.size()) + " readings are too few: " +
@@ -391,6 +399,7 @@ Result<Eigen::MatrixXd> RobotCovarianceAt(const RobotCalibrationData& data, cons
   if (params.size() != static_cast<std::size_t>(kRobotCalibrationUnknowns)) {
     return InvalidArgument("RobotCovarianceAt: expected the 27 calibration unknowns");
   }
+  IDI_RETURN_IF_ERROR(CheckReadings(data, "RobotCovarianceAt"));
   Unknowns u = UnknownsFrom(params);
   const auto w = Weights(u, data, noise);
   Built b;
@@ -413,6 +422,7 @@ Result<Eigen::MatrixXd> RobotReadingJacobians(const RobotCalibrationData& data, 
   if (params.size() != static_cast<std::size_t>(kRobotCalibrationUnknowns)) {
     return InvalidArgument("RobotReadingJacobians: expected the 27 calibration unknowns");
   }
+  IDI_RETURN_IF_ERROR(CheckReadings(data, "RobotReadingJacobians"));
   const Unknowns u = UnknownsFrom(params);
   const auto w = Weights(u, data, noise);
   Eigen::MatrixXd j = Eigen::MatrixXd::Zero(2 * static_cast<Eigen::Index>(data.readings.size()), kRobotCalibrationUnknowns);
