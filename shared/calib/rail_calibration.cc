@@ -1,9 +1,11 @@
 #include "shared/calib/rail_calibration.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <utility>
 #include <vector>
 
 #include "shared/optim/vicki_costs.h"
@@ -389,6 +391,32 @@ Result<JointCalibrationResult> CalibrateArmsAndRail(const RobotCalibrationData& 
                                                     const optim::SolverOptions& solver) {
   IDI_RETURN_IF_ERROR(robot_noise.Check());
   IDI_RETURN_IF_ERROR(rail_noise.Check());
+  // The start results must be of these data (their outliers index them) and complete.
+  const std::array<std::pair<const RobotCalibrationResult*, const RobotCalibrationData*>, 2> arms_in{
+      std::pair{&start1, &data1}, std::pair{&start2, &data2}};
+  for (std::size_t k = 0; k < 2; ++k) {
+    const auto& [start, data] = arms_in[k];
+    const std::string which = "joint calibration: robot " + std::to_string(k + 1) + "'s start";
+    if (start->params.size() != static_cast<std::size_t>(kRobotCalibrationUnknowns)) {
+      return InvalidArgument(which + " has " + std::to_string(start->params.size()) + " parameters, not the " +
+                             std::to_string(kRobotCalibrationUnknowns) + " of a robot calibration");
+    }
+    for (const OutlierReading& o : start->outliers) {
+      if (o.index < 0 || o.index >= static_cast<int>(data->readings.size())) {
+        return InvalidArgument(which + " names reading " + std::to_string(o.index + 1) + " an outlier, of " +
+                               std::to_string(data->readings.size()) + ": it is not of these data");
+      }
+    }
+  }
+  if (start_rail.psi.size() != static_cast<std::size_t>(kRobotToRobotParamCount)) {
+    return InvalidArgument("joint calibration: the rail's start has no robot-to-robot transform");
+  }
+  for (const int i : start_rail.outliers) {
+    if (i < 0 || i >= static_cast<int>(rail.size())) {
+      return InvalidArgument("joint calibration: the rail's start names reading " + std::to_string(i + 1) +
+                             " an outlier, of " + std::to_string(rail.size()) + ": it is not of these data");
+    }
+  }
   // Per arm: robot (18), laser (4), point (3), phi (2) blocks.
   struct Blocks {
     std::array<double, kRx130ParamCount> robot{};
@@ -434,7 +462,9 @@ Result<JointCalibrationResult> CalibrateArmsAndRail(const RobotCalibrationData& 
       if (!optim::EvaluateAim(arm[k].robot.data(), arm[k].laser.data(), r.q, optim::AimedPoint(p, arm[k].phi.data(), offset), &e)) {
         continue;
       }
-      const Eigen::Matrix2d l = Eigen::LLT<Eigen::Matrix2d>(optim::AimNoiseCovariance(e, aim_noise)).matrixL();
+      const Eigen::LLT<Eigen::Matrix2d> llt(optim::AimNoiseCovariance(e, aim_noise));
+      if (llt.info() != Eigen::Success) continue;  // no noise model at this reading (as no evaluation)
+      const Eigen::Matrix2d l = llt.matrixL();
       std::vector<double*> blocks{arm[k].robot.data(), arm[k].laser.data(), arm[k].point.data()};
       if (offset) blocks.push_back(arm[k].phi.data());
       problem.AddResidual(std::make_shared<optim::AimResidual>(r.q, offset, Eigen::Matrix2d(l.inverse())), blocks);

@@ -137,6 +137,35 @@ TEST(RailCalibrationTest, TooFewReadingsLeftAfterTheOutliersIsAFailure) {
       << r.status().message();
 }
 
+// The joint calibration's start results must be complete and of the data given: an empty start, or
+// one whose outliers name readings the data do not have, is refused (before: a throw from an empty
+// parameter set, or a write past the end of the outlier flags).
+TEST(RailCalibrationTest, JointCalibrationRefusesStartsOfOtherData) {
+  const ArmModel a1 = PerturbedArm(25), a2 = PerturbedArm(26);
+  const Vec3d point(500, 4000, 200);
+  const RobotCalibrationData d1 = testing::ExactRobotData(a1, point, 1000.0, 70, 3);
+  const RobotCalibrationData d2 = testing::ExactRobotData(a2, point, 1000.0, 70, 4);
+  const auto rail = ExactRailData(a1, a2, kTwoWalls, 25, 7);
+  RobotCalibrationResult s1, s2;
+  s1.params = s2.params = PackRobotCalibration(a1.robot, a1.laser, point, a1.rail);
+  RailCalibrationResult sr;
+  for (std::size_t k = 0; k < 4; ++k) sr.psi.set_value(k, kTruePsi[k]);
+  auto run = [&] { return CalibrateArmsAndRail(d1, d2, rail, s1, s2, sr, {}, {}, {}).status(); };
+  RobotCalibrationResult empty;
+  EXPECT_EQ(CalibrateArmsAndRail(d1, d2, rail, empty, s2, sr, {}, {}, {}).status().code(),
+            StatusCode::kInvalidArgument);
+  s2.outliers.push_back({});
+  s2.outliers.back().index = 140;  // d2 has 140 readings: 0 to 139
+  Status st = run();
+  EXPECT_EQ(st.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(st.message().find("robot 2's start names reading 141"), std::string::npos) << st.ToString();
+  s2.outliers.clear();
+  sr.outliers = {25};
+  st = run();
+  EXPECT_EQ(st.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(st.message().find("the rail's start names reading 26"), std::string::npos) << st.ToString();
+}
+
 TEST(RailCalibrationTest, TooFewOrNanReadingsAreRefused) {
   const ArmModel a1 = PerturbedArm(25), a2 = PerturbedArm(26);
   auto data = ExactRailData(a1, a2, kTwoWalls, 19, 7);
