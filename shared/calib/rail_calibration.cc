@@ -379,6 +379,9 @@ std::string RailCalibrationResult::Summary() const {
     s << "; std with the arms' own uncertainty: psi_x " << psi.stddev(0) << " mm (" << std_given_arms[0]
       << " mm with the arms taken as exact)";
   }
+  if (!summary.converged) {
+    s << "; warning: the last solve stopped before converging, psi and its std may not be at the optimum";
+  }
   return s.str();
 }
 

@@ -259,8 +259,16 @@ std::string PtuCalibrationResult::Summary() const {
     s += fmt::format("{}: {} observations, {} inliers, RMS {:.3f} px per axis, mean error {:.3f} px, max {:.3f} px\n",
                      BiclopsSideName(c.side), c.observations, c.inliers, c.rms_px, c.mean_error_px, c.max_error_px);
   }
-  s += fmt::format("{} iterations, {:.1f} ms, condition number {:.3g}, sigma0 {:.3f} px", iterations, time_ms,
-                   condition_number, std::sqrt(variance_factor));
+  s += fmt::format("{} iterations ({}), {:.1f} ms, condition number {:.3g}, sigma0 {:.3f} px",
+                   iterations,
+                   termination,
+                   time_ms,
+                   condition_number,
+                   std::sqrt(variance_factor));
+  if (termination != "convergence") {
+    s += "\nwarning: the last solve stopped before converging (max_iterations); the parameters and their std may "
+         "not be at the optimum";
+  }
   for (const auto& g : gauge) {
     s += fmt::format("\ngauge: the data cannot separate {}; fixed {}", g.combination, g.fixed_parameter);
   }
@@ -444,6 +452,7 @@ Result<PtuCalibrationResult> CalibratePtu(const std::vector<PtuObservation>& obs
   {
     auto st = RunPtuStage(s, observations, use, {}, options.max_iterations);
     if (!st.ok()) return st.status().WithContext(options.source);
+    result.termination = st->termination;
     result.iterations += st->iterations;
     result.cost_per_iteration.insert(result.cost_per_iteration.end(), st->cost_per_iteration.begin(),
                                      st->cost_per_iteration.end());

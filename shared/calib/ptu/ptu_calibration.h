@@ -108,6 +108,9 @@ struct PtuCalibrationResult {
   double variance_factor = 1;                 // sigma0^2 in px^2 per residual component
   int rejected = 0;
   int iterations = 0;                         // over all stages
+  // The final (least-squares) stage's: "convergence", or "no_convergence" when it stopped at
+  // max_iterations (the result is then usable but may not be the optimum; Summary warns).
+  std::string termination;
   double time_ms = 0;
   std::vector<double> cost_per_iteration;     // all stages, in order
 

@@ -250,6 +250,23 @@ TEST(PtuCalibration, BadDataGivesAClearMessage) {
   }
 }
 
+// A fit stopped at the iteration limit is usable but says so: the result's termination, and a warning
+// in the summary (before, nothing told it from a converged fit).
+TEST(PtuCalibration, AFitStoppedAtTheIterationLimitSaysSo) {
+  const PtuSyntheticData d = MakePtuData(5, 0.2);
+  const auto done = CalibratePtu(d.calibration, {});
+  ASSERT_TRUE(done.ok()) << done.status().ToString();
+  EXPECT_EQ(done->termination, "convergence");
+  EXPECT_EQ(done->Summary().find("warning"), std::string::npos) << done->Summary();
+  PtuCalibrationOptions o;
+  o.max_iterations = 1;
+  const auto cut = CalibratePtu(d.calibration, {}, o);
+  ASSERT_TRUE(cut.ok()) << cut.status().ToString();
+  EXPECT_EQ(cut->termination, "no_convergence");
+  EXPECT_NE(cut->Summary().find("warning: the last solve stopped before converging"), std::string::npos)
+      << cut->Summary();
+}
+
 TEST(PtuCalibration, HeldFixedParametersKeepTheirStartValues) {
   const PtuSyntheticData d = MakePtuData(8, 0.2);
   PtuCalibrationOptions o;
