@@ -116,6 +116,16 @@ class FaultingArm : public hal::ArmDevice {
   StatusCode fault_;
 };
 
+// Robot 1's acquisition (75 readings per set, 30 held out: 180 configurations) with its arm replaced.
+Result<RobotAcquisition> AcquireWithRobotOne(sim::WorkcellTwin& twin, hal::ArmDevice& arm) {
+  ArmDevices dev = Devices(twin, 0);
+  dev.arm = &arm;
+  RobotAcquisitionOptions o;
+  o.per_set = 75;
+  o.held_out = 30;
+  return AcquireRobotData(dev, 0, TwinCellSetup(twin), calib::ArmModel{}, o);
+}
+
 // A device fault during an acquisition ends it at once with that fault, the arm stopped and the laser
 // off: it is not an aiming miss to count while the arm is commanded through hundreds more
 // configurations (which ended in NotConverged, a code the service does not take for a fault). Misses
@@ -124,12 +134,7 @@ TEST(CalibrationProceduresTest, ADeviceFaultEndsAnAcquisition) {
   for (const StatusCode fault : {StatusCode::kDeviceError, StatusCode::kTimeout}) {
     sim::WorkcellTwin twin({});
     FaultingArm arm(twin.arm(0), 40, fault);
-    ArmDevices dev = Devices(twin, 0);
-    dev.arm = &arm;
-    RobotAcquisitionOptions o;
-    o.per_set = 75;
-    o.held_out = 30;
-    const auto acq = AcquireRobotData(dev, 0, TwinCellSetup(twin), calib::ArmModel{}, o);
+    const auto acq = AcquireWithRobotOne(twin, arm);
     ASSERT_FALSE(acq.ok());
     EXPECT_EQ(acq.status().code(), fault) << acq.status().ToString();
     EXPECT_NE(acq.status().message().find("robot 1: acquisition: stopped after"), std::string::npos)
@@ -159,12 +164,7 @@ TEST(CalibrationProceduresTest, ADeviceFaultEndsAnAcquisition) {
 TEST(CalibrationProceduresTest, AJointLimitIsAMissNotAFault) {
   sim::WorkcellTwin twin({});
   FaultingArm arm(twin.arm(0), 0, StatusCode::kOutOfRange);
-  ArmDevices dev = Devices(twin, 0);
-  dev.arm = &arm;
-  RobotAcquisitionOptions o;
-  o.per_set = 75;
-  o.held_out = 30;
-  const auto acq = AcquireRobotData(dev, 0, TwinCellSetup(twin), calib::ArmModel{}, o);
+  const auto acq = AcquireWithRobotOne(twin, arm);
   ASSERT_FALSE(acq.ok());
   EXPECT_EQ(acq.status().code(), StatusCode::kNotConverged) << acq.status().ToString();
   EXPECT_EQ(arm.moves, 180) << "every configuration was tried";
