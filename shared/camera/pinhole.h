@@ -21,6 +21,7 @@
 
 #include "shared/geometry/rigid3.h"
 #include "shared/util/param_set.h"
+#include "shared/util/status.h"
 
 namespace idi {
 
@@ -76,12 +77,24 @@ Vec2<T> ProjectToPixel(const T* p, const Vec3<T>& point_in_cam) {
   return Vec2<T>(p[kFx] * xd.x() + p[kCx], p[kFy] * xd.y() + p[kCy]);
 }
 
-// Projection with a visibility check: nullopt when the point is not in front of the camera.
+// The undistorted radius (of x/z, y/z) up to which the radial model r (1 + k1 r^2 + k2 r^4 + k3 r^6)
+// still grows with r: beyond it the model folds back, and a point there would land on the pixel of a
+// point nearer the axis. Infinity when it grows everywhere (no distortion, or a real lens's values).
+// The tangential terms are left out (they are small where a model is valid).
+double MonotonicRadius(const CameraModel& camera);
+
+// Projection with a visibility check: nullopt when the point is not in front of the camera, or lies
+// beyond MonotonicRadius (where the model's pixel is not where the lens would put it).
 std::optional<Vec2d> Project(const CameraModel& camera, const Vec3d& point_in_cam, double min_depth = 1e-9);
 
 // Removes distortion: pixel to normalised undistorted coordinates (x/z, y/z). Iterative (Gauss-Newton
-// on the forward model), accurate to ~1e-12 for distortion a real lens has.
+// on the forward model), accurate to ~1e-12 for distortion a real lens has. NaN for a pixel the model
+// cannot invert: no undistorted point within MonotonicRadius distorts onto it (a corner of an image
+// with more barrel distortion than the model can hold), or the iteration did not converge.
 Vec2d PixelToNormalized(const CameraModel& camera, const Vec2d& pixel);
+// InvalidArgument when a pixel of the image (its four corners, the farthest from the axis) cannot be
+// undistorted: the distortion is beyond what the model can hold for this image and focal length.
+Status CheckDistortionCoversImage(const CameraModel& camera);
 // The unit ray (camera frame) through a pixel.
 Vec3d PixelToRay(const CameraModel& camera, const Vec2d& pixel);
 // Pixel with distortion removed, expressed in the same K (an ideal pinhole image).

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 namespace idi {
 namespace {
 
@@ -49,6 +51,31 @@ TEST(PinholeTest, UnprojectInvertsProject) {
       EXPECT_LT((ray - p.normalized()).norm(), 1e-11) << x << ", " << y;
     }
   }
+}
+
+// k1 = -0.3 alone: r (1 - 0.3 r^2) grows up to r = 1/sqrt(0.9) = 1.054 (distorted radius 0.703) and
+// then folds back. A point beyond the fold is not projected (it landed on a pixel inside the image),
+// and a pixel no ray reaches, or one the iteration cannot invert, has no ray (before: the fold's
+// point, in the opposite direction, or an unconverged one, both as valid).
+TEST(PinholeTest, StrongBarrelDistortionBeyondItsFoldHasNoPixelAndNoRay) {
+  CameraModel c;
+  c.params = {400, 400, 319.5, 239.5, -0.3, 0, 0, 0, 0};
+  EXPECT_NEAR(MonotonicRadius(c), 1 / std::sqrt(0.9), 1e-9);
+  EXPECT_TRUE(std::isinf(MonotonicRadius(CameraModel{})));
+  EXPECT_TRUE(Project(c, Vec3d(1.0, 0, 1)).has_value());
+  EXPECT_FALSE(Project(c, Vec3d(2.0, 0, 1)).has_value());
+  // Pixels at distorted radius 1.0 and 0.8 (> 0.703): no ray.
+  EXPECT_FALSE(PixelToNormalized(c, Vec2d(-0.5, -0.5)).allFinite());
+  EXPECT_FALSE(PixelToNormalized(c, Vec2d(639.5, 239.5)).allFinite());
+  // Inside the fold, the inverse is exact.
+  const Vec2d px = *Project(c, Vec3d(0.9, 0.3, 1));
+  EXPECT_LT((PixelToNormalized(c, px) - Vec2d(0.9, 0.3)).norm(), 1e-9);
+  const Status st = CheckDistortionCoversImage(c);
+  EXPECT_EQ(st.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(st.message().find("folds back"), std::string::npos) << st.ToString();
+  c.params[kFx] = c.params[kFy] = 800;  // the corners at distorted radius 0.5: within the fold
+  EXPECT_TRUE(CheckDistortionCoversImage(c).ok());
+  EXPECT_TRUE(CheckDistortionCoversImage(DistortedCamera()).ok());
 }
 
 TEST(PinholeTest, UndistortPixelIsIdentityWithoutDistortion) {

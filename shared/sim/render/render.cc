@@ -48,6 +48,7 @@ Status CheckCamera(const CameraModel& camera, const Rigid3d& cam_from_world) {
     if (!std::isfinite(p)) return InvalidArgument("camera intrinsics must be finite");
   }
   if (!(camera.fx() > 0) || !(camera.fy() > 0)) return InvalidArgument("camera fx and fy must be positive");
+  IDI_RETURN_IF_ERROR(CheckDistortionCoversImage(camera).WithContext("camera"));
   if (!cam_from_world.rotation.allFinite() || !cam_from_world.translation.allFinite()) {
     return InvalidArgument("cam_from_world must be finite");
   }

@@ -447,6 +447,9 @@ Status WorkcellSceneSpec::Check() const {
       if (!std::isfinite(p)) return InvalidArgument(where + ": the intrinsics must be finite");
     }
     if (!(k.fx() > 0) || !(k.fy() > 0)) return InvalidArgument(where + ": fx_px and fy_px must be positive");
+    if (const Status d = CheckDistortionCoversImage(k); !d.ok()) {
+      return InvalidArgument(where + ": distortion: " + std::string(d.message()));
+    }
     if (!c.position_mm.allFinite() || !c.look_at_mm.allFinite() || !std::isfinite(c.roll_deg)) {
       return InvalidArgument(where + ": position_mm, look_at_mm and roll_deg must be finite");
     }

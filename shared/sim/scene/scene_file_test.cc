@@ -131,6 +131,10 @@ TEST(SceneFileTest, NanAndGarbageAreRejected) {
   ExpectMentions(ParseErrorOf("objects: [{kind: sphere}]\n"), {"objects[0].kind", "sphere"});
   ExpectMentions(ParseErrorOf("seed: [1, 2\n"), {"scene.yaml:"});
   ExpectMentions(ParseErrorOf("- 1\n- 2\n"), {"the scene must be a map"});
+  // Barrel distortion the model cannot hold at this focal length: the corners' rays fold back (before,
+  // it was rendered, the corners with a wrong footprint and the truth with points from the fold).
+  ExpectMentions(ParseErrorOf("cameras: [{name: fisheye, fx_px: 400, distortion: [-0.3, 0, 0, 0, 0]}]\n"),
+                 {"cameras[0] 'fisheye'", "distortion", "folds back"});
 }
 
 TEST(SceneFileTest, ImpossibleObjectsAreRejected) {
