@@ -6,6 +6,8 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <string>
+#include <utility>
 
 #include "shared/util/atomic_file.h"
 
@@ -42,7 +44,11 @@ std::vector<double> LinearTicks(double lo, double hi) {
     }
   }
   std::vector<double> t;
-  for (double v = std::ceil(lo / step) * step; v <= hi + 1e-9 * span; v += step) t.push_back(std::abs(v) < 1e-12 * step ? 0.0 : v);
+  // A step lost to rounding (a range of a few units far from zero) would never advance: the two ends.
+  if (!(span > 0) || !std::isfinite(span) || !(step > 0) || lo + step == lo || hi + step == hi) return {lo, hi};
+  for (double v = std::ceil(lo / step) * step; v <= hi + 1e-9 * span && t.size() < 100; v += step) {
+    t.push_back(std::abs(v) < 1e-12 * step ? 0.0 : v);
+  }
   return t;
 }
 
@@ -58,8 +64,10 @@ Range DataRange(const std::vector<double>& v, const Axis& axis, double pad_fract
     hi = std::log10(hi);
   }
   if (hi - lo < 1e-12 * std::max(1.0, std::abs(hi))) {
-    lo -= 0.5;
-    hi += 0.5;
+    // One value: half a unit either side, or more where half a unit is lost to rounding.
+    const double pad = std::max(0.5, 1e-9 * std::abs(hi));
+    lo -= pad;
+    hi += pad;
   } else {
     const double pad = pad_fraction * (hi - lo);
     lo -= pad;
@@ -83,14 +91,19 @@ cv::Size TextSize(const std::string& text, double scale = kFontScale, int thickn
 
 Result<HistogramBins> Histogram(const std::vector<double>& values, int bins, std::optional<double> lo,
                                 std::optional<double> hi) {
-  if (bins <= 0) return InvalidArgument("histogram: bins must be positive");
+  if (bins <= 0 || bins > 1000000) return InvalidArgument("histogram: bins must be 1 to 1000000");
   if (values.empty()) return InvalidArgument("histogram: no values");
   for (double v : values) {
     if (!std::isfinite(v)) return InvalidArgument("histogram: a value is not finite");
   }
   const double a = lo.value_or(*std::min_element(values.begin(), values.end()));
   double b = hi.value_or(*std::max_element(values.begin(), values.end()));
-  if (!(b > a)) b = a + 1.0;
+  if (!(b > a)) b = a + std::max(1.0, 1e-9 * std::abs(a));
+  // A range whose width overflows (or a non-finite bound) has no bins: the bin index would be NaN.
+  if (!std::isfinite(a) || !std::isfinite(b) || !std::isfinite(b - a)) {
+    return InvalidArgument("histogram: the range [" + std::to_string(a) + ", " + std::to_string(b) +
+                           "] is not finite or too wide");
+  }
   HistogramBins h;
   h.counts.assign(static_cast<std::size_t>(bins), 0);
   for (int i = 0; i <= bins; ++i) h.edges.push_back(a + (b - a) * i / bins);
@@ -156,7 +169,18 @@ Result<std::vector<std::uint8_t>> Figure::EncodePng() const {
       }
     }
   }
+  for (const auto& [axis, name] : {std::pair<const Axis*, const char*>{&x_, "x"}, {&y_, "y"}}) {
+    const double lo = axis->min.value_or(axis->log ? 1.0 : 0.0), hi = axis->max.value_or(lo + 1.0);
+    if (!std::isfinite(lo) || !std::isfinite(hi) || (axis->min && axis->max && !(hi > lo)) ||
+        (axis->log && (!(lo > 0) || !(hi > 0)))) {
+      return InvalidArgument("plot '" + title_ + "': the " + name +
+                             " axis' fixed range must be finite with min < max (and > 0 on a log axis)");
+    }
+  }
   Range rx = DataRange(xs, x_, 0.03), ry = DataRange(ys, y_, 0.05);
+  if (!(rx.hi > rx.lo) || !(ry.hi > ry.lo) || !std::isfinite(rx.hi - rx.lo) || !std::isfinite(ry.hi - ry.lo)) {
+    return InvalidArgument("plot '" + title_ + "': the data's range is empty or too wide to draw");
+  }
   const int pw = width_ - kLeft - kRight, ph = height_ - kTop - kBottom;
   if (equal_aspect_ && !x_.log && !y_.log) {
     const double sx = (rx.hi - rx.lo) / pw, sy = (ry.hi - ry.lo) / ph;

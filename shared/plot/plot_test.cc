@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -81,6 +82,33 @@ TEST(PlotTest, BadDataIsRefusedNamingTheSeries) {
   Figure g;
   g.AddLine({0, 1, 2}, {1, 2}, "short", kBlue);
   EXPECT_EQ(g.EncodePng().status().code(), StatusCode::kInvalidArgument);
+}
+
+// Finite values whose range overflows, a fixed range that is empty, and values far from zero that
+// differ by a few units: refused or drawn, never a write outside the bins (the bin index was NaN) or a
+// tick loop that does not advance (a step of 0.5 added to 5e15).
+TEST(PlotTest, ExtremeRangesAreRefusedOrDrawn) {
+  EXPECT_EQ(Histogram({-1e308, 1e308}, 10).status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(Histogram({1.0, 2.0}, 10, -std::numeric_limits<double>::infinity()).status().code(),
+            StatusCode::kInvalidArgument);
+  const auto one = Histogram({1e17, 1e17}, 3);  // one value far from zero: a bin around it, not a zero width
+  ASSERT_TRUE(one.ok());
+  EXPECT_EQ(one->counts[0], 2);
+  Figure far;
+  far.AddLine({0, 1, 2}, {5e15, 5e15 + 1, 5e15 + 2}, "far", kBlue);
+  EXPECT_TRUE(far.EncodePng().ok());
+  Figure flat;
+  flat.AddLine({0, 1}, {5e15, 5e15}, "flat", kBlue);
+  EXPECT_TRUE(flat.EncodePng().ok());
+  Figure fixed;
+  fixed.AddLine({0, 1}, {1, 2}, "", kBlue);
+  fixed.x_axis().min = 2.0;
+  fixed.x_axis().max = 1.0;
+  EXPECT_EQ(fixed.EncodePng().status().code(), StatusCode::kInvalidArgument);
+  fixed.x_axis().max = 3.0;
+  fixed.y_axis().log = true;
+  fixed.y_axis().min = -1.0;
+  EXPECT_EQ(fixed.EncodePng().status().code(), StatusCode::kInvalidArgument);
 }
 
 TEST(PlotTest, SavesAtomically) {
