@@ -5,6 +5,7 @@
 #include <cmath>
 #include <functional>
 #include <map>
+#include <set>
 
 #include "shared/runtime/yaml_error.h"
 #include "shared/util/atomic_file.h"
@@ -87,9 +88,11 @@ class MapReader {
   Status Run() {
     if (!node_ || node_.IsNull()) return Status::Ok();
     if (!node_.IsMap()) return InvalidArgument(Where(node_) + ": " + (path_.empty() ? "the file" : path_) + " must be a map");
+    std::set<std::string> seen;
     for (const auto& kv : node_) {
       if (!kv.first.IsScalar()) return InvalidArgument(Where(kv.first) + ": keys must be plain names");
       const std::string key = kv.first.as<std::string>();
+      if (!seen.insert(key).second) return InvalidArgument(Where(kv.first) + ": key '" + Key(key) + "' given twice");
       auto it = handlers_.find(key);
       if (it == handlers_.end()) {
         std::string known;

@@ -70,6 +70,11 @@ TEST(RmpConfigTest, RefusesMistakesNamingFileLineAndKey) {
   ASSERT_FALSE(cams.ok());
   EXPECT_NE(cams.status().message().find("right"), std::string::npos);
   EXPECT_FALSE(ParseRmpConfig("sim: {faults: {frozen_camera: middle}}\n", "c.yaml").ok());
+  // A key given twice: yaml-cpp keeps both, and the second silently replaced the first.
+  auto twice = ParseRmpConfig("planner:\n  max_speed_mps: 0.4\n  max_speed_mps: 4.0\n", "c.yaml");
+  ASSERT_FALSE(twice.ok());
+  EXPECT_NE(twice.status().message().find("c.yaml:3: key 'planner.max_speed_mps' given twice"), std::string::npos)
+      << twice.status().message();
   // Values and keys of the wrong shape: an error naming the file (never a YAML exception).
   for (const char* text : {"[x]: 1\n", "planner: {[a]: 1}\n", "backend: [sim]\n", "control: {rate_hz: [1, 2]}\n"}) {
     const auto r = ParseRmpConfig(text, "c.yaml");

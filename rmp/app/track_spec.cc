@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
 
 #include "shared/runtime/yaml_error.h"
 #include "shared/sim/render/shapes.h"
@@ -78,9 +79,12 @@ Result<TrackSpec> ParseTrackYaml(const std::string& text, const std::string& sou
   if (!root.IsMap()) return ParseError(source + ": expected a map with tape_width_m and points_m");
   TrackSpec t;
   t.source = source;
+  std::set<std::string> seen;
   for (const auto& kv : root) {
     const std::string key = kv.first.as<std::string>();
     const YAML::Node& v = kv.second;
+    // A repeated points_m would append a second track to the first.
+    if (!seen.insert(key).second) return InvalidArgument(Where(source, kv.first) + ": key '" + key + "' given twice");
     if (key == "tape_width_m") {
       IDI_ASSIGN_OR_RETURN(t.tape_width_m, Number(v, source, key));
     } else if (key == "speed_mps") {

@@ -29,6 +29,11 @@ TEST(TrackSpecTest, NamesTheFileLineAndKeyOfMistakes) {
   ASSERT_FALSE(unknown.ok());
   EXPECT_NE(unknown.status().message().find("t.yaml:2"), std::string::npos);
   EXPECT_NE(unknown.status().message().find("tape_widht_m"), std::string::npos);
+  // points_m twice appended a second track to the first.
+  auto twice = ParseTrackYaml("points_m: [[0, 0], [1, 0]]\npoints_m: [[5, 5], [6, 5]]\n", "t.yaml");
+  ASSERT_FALSE(twice.ok());
+  EXPECT_NE(twice.status().message().find("t.yaml:2: key 'points_m' given twice"), std::string::npos)
+      << twice.status().message();
   auto one_point = ParseTrackYaml("points_m: [[0, 0]]\n", "t.yaml");
   ASSERT_FALSE(one_point.ok());
   EXPECT_NE(one_point.status().message().find("two points"), std::string::npos);

@@ -17,8 +17,13 @@ std::string At(const std::string& where, const YAML::Node& n) {
 Status OnlyKeys(const YAML::Node& map, const std::set<std::string>& allowed, const std::string& where,
                 const std::string& section) {
   if (!map.IsMap()) return InvalidArgument(At(where, map) + ": '" + section + "' must be a map");
+  std::set<std::string> seen;
   for (const auto& kv : map) {
     const std::string key = kv.first.as<std::string>();
+    if (!seen.insert(key).second) {
+      return InvalidArgument(At(where, kv.first) + ": key '" + (section.empty() ? "" : section + ".") + key +
+                             "' given twice");
+    }
     if (allowed.count(key) == 0) {
       return InvalidArgument(At(where, kv.first) + ": unknown key '" + (section.empty() ? "" : section + ".") + key + "'");
     }

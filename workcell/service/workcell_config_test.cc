@@ -50,6 +50,7 @@ TEST(WorkcellConfigTest, RejectsBadConfigsNamingFileLineAndKey) {
   };
   for (const Case& k : std::initializer_list<Case>{
            {"backend: sim\nbogus: 1\n", "w.yaml:2: unknown key 'bogus'"},
+           {"backend: sim\nbackend: hardware\n", "w.yaml:2: key 'backend' given twice"},
            {"backend: robots\n", "backend 'robots'"},
            {"backend: sim\ncalibration: {max_age_days: -3}\n", "max_age_days' must be positive"},
            {"backend: sim\ncontrol: {socket: [1]}\n", "'control.socket' has the wrong type"},

@@ -34,8 +34,13 @@ Status CheckSceneMap(const YAML::Node& node, const std::string& source, const st
   if (!node.IsMap()) {
     return InvalidArgument(SceneWhere(source, node) + ": " + (path.empty() ? "the scene" : path) + " must be a map");
   }
+  std::set<std::string> seen;
   for (const auto& kv : node) {
     const std::string key = kv.first.Scalar();
+    // yaml-cpp keeps both entries of a repeated key and reads the first: the second would be ignored.
+    if (!seen.insert(key).second) {
+      return InvalidArgument(SceneWhere(source, kv.first) + ": key '" + KeyPath(path, key) + "' given twice");
+    }
     if (std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
     std::string hint;
     if (key == "supersampling") {

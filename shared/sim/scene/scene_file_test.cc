@@ -131,6 +131,9 @@ TEST(SceneFileTest, NanAndGarbageAreRejected) {
   ExpectMentions(ParseErrorOf("objects: [{kind: sphere}]\n"), {"objects[0].kind", "sphere"});
   ExpectMentions(ParseErrorOf("seed: [1, 2\n"), {"scene.yaml:"});
   ExpectMentions(ParseErrorOf("- 1\n- 2\n"), {"the scene must be a map"});
+  // yaml-cpp keeps a repeated key and reads its first value: the second was silently ignored.
+  ExpectMentions(ParseErrorOf("seed: 1\nseed: 2\n"), {"scene.yaml:2", "key 'seed' given twice"});
+  ExpectMentions(ParseErrorOf("noise: {read_noise_dn: 1, read_noise_dn: 2}\n"), {"'noise.read_noise_dn' given twice"});
   // Barrel distortion the model cannot hold at this focal length: the corners' rays fold back (before,
   // it was rendered, the corners with a wrong footprint and the truth with points from the fold).
   ExpectMentions(ParseErrorOf("cameras: [{name: fisheye, fx_px: 400, distortion: [-0.3, 0, 0, 0, 0]}]\n"),
