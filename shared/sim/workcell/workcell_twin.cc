@@ -79,6 +79,29 @@ Mat3d SmallRotation(std::mt19937_64& rng, double sigma_rad) {
 }  // namespace
 
 Status WorkcellTwinOptions::Check() const {
+  // Every value finite (an infinite wall distance or spot noise passed the >= tests and gave NaN walls
+  // and spots), psi's sigmas too.
+  const double all[] = {joint_offset_sigma_deg,
+                        twist_sigma_deg,
+                        length_sigma_mm,
+                        arm_length_sigma_mm,
+                        laser_angle_sigma_deg,
+                        laser_offset_sigma_mm,
+                        rail_angle_sigma_deg,
+                        wall_distance_min_mm,
+                        wall_distance_max_mm,
+                        floor_height_mm,
+                        spot_sigma_mm,
+                        rail_repeatability_mm,
+                        rail_length_mm,
+                        setup_wall_position_error_mm,
+                        setup_wall_angle_error_deg};
+  for (const double v : all) {
+    if (!std::isfinite(v)) return InvalidArgument("workcell twin: invalid options (a value is not finite)");
+  }
+  for (const double s : psi_sigma) {
+    if (!(s >= 0 && std::isfinite(s))) return InvalidArgument("workcell twin: psi_sigma must be finite and >= 0");
+  }
   const bool ok = joint_offset_sigma_deg >= 0 && twist_sigma_deg >= 0 && length_sigma_mm >= 0 && arm_length_sigma_mm >= 0 &&
                   laser_angle_sigma_deg >= 0 && laser_offset_sigma_mm >= 0 && rail_angle_sigma_deg >= 0 &&
                   wall_distance_min_mm >= 1500 && wall_distance_max_mm >= wall_distance_min_mm && floor_height_mm < -500 &&
@@ -249,8 +272,12 @@ Status SimRail::MoveTo(double position_mm, const hal::MoveOptions& options) {
     return OutOfRange("sim rail " + std::to_string(k_ + 1) + ": position " + std::to_string(position_mm) +
                       " mm is outside [0, " + std::to_string(twin_->options_.rail_length_mm) + "] mm");
   }
+  // As the arm (and the real controller): a NaN was clamped to NaN and became a NaN sleep.
+  if (!(options.speed_fraction > 0 && options.speed_fraction <= 1)) {
+    return InvalidArgument("sim rail " + std::to_string(k_ + 1) + ": speed_fraction must be in (0, 1]");
+  }
   WorkcellTwin::ArmState& a = *twin_->arms_[static_cast<std::size_t>(k_)];
-  const double speed_mmps = 500.0 * std::clamp(options.speed_fraction, 0.01, 1.0);
+  const double speed_mmps = 500.0 * std::max(options.speed_fraction, 0.01);
   twin_->clock_.SleepForNs(hal::SecToNs(std::abs(position_mm - a.rail_reading_mm) / speed_mmps + 0.5));
   std::normal_distribution<double> n(0.0, 1.0);
   a.rail_true_mm = position_mm + twin_->options_.rail_repeatability_mm * n(twin_->rail_rng_);

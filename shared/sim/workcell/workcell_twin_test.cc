@@ -53,6 +53,27 @@ TEST(WorkcellTwinTest, RailLandsWithinItsRepeatabilityAndReadsTheCommand) {
   EXPECT_NEAR(std::sqrt(sum2 / 200), 0.1, 0.03);
 }
 
+// The rail refuses a speed fraction outside (0, 1], as the arm and the real controller do (a NaN was a
+// NaN sleep, others were clamped), and the options refuse values that are not finite.
+TEST(WorkcellTwinTest, BadSpeedsAndOptionsAreRefused) {
+  WorkcellTwin twin({});
+  for (const double f : {std::nan(""), 0.0, 1.5}) {
+    hal::MoveOptions o;
+    o.speed_fraction = f;
+    EXPECT_EQ(twin.rail(0).MoveTo(1000.0, o).code(), StatusCode::kInvalidArgument) << f;
+  }
+  WorkcellTwinOptions o;
+  EXPECT_TRUE(o.Check().ok());
+  o.wall_distance_max_mm = INFINITY;
+  EXPECT_FALSE(o.Check().ok());
+  o = {};
+  o.spot_sigma_mm = INFINITY;
+  EXPECT_FALSE(o.Check().ok());
+  o = {};
+  o.psi_sigma[2] = -1;
+  EXPECT_FALSE(o.Check().ok());
+}
+
 TEST(WorkcellTwinTest, SpotIsWhereTheTrueBeamMeetsTheWall) {
   WorkcellTwinOptions o;
   o.spot_sigma_mm = 0.0;
