@@ -15,8 +15,10 @@
 namespace idi::sim {
 
 Status RenderOptions::Check() const {
-  if (!std::isfinite(exposure_dn) || exposure_dn < 0) {
-    return InvalidArgument("render exposure_dn must be >= 0, got " + std::to_string(exposure_dn));
+  // Bounded so that exposure x radiance stays a float (an infinite pixel plus its shot noise was NaN,
+  // which became 0: saturated pixels turned black).
+  if (!std::isfinite(exposure_dn) || exposure_dn < 0 || exposure_dn > 1e6) {
+    return InvalidArgument("render exposure_dn must be in [0, 1e6], got " + std::to_string(exposure_dn));
   }
   if (!std::isfinite(psf_sigma_px) || psf_sigma_px < 0 || psf_sigma_px > 20) {
     return InvalidArgument("render psf_sigma_px must be in [0, 20], got " + std::to_string(psf_sigma_px));

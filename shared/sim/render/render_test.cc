@@ -21,6 +21,19 @@ TEST(RenderTest, BoxOnWallRenders) {
   EXPECT_FALSE(truth.lines.empty());
 }
 
+// An exposure or a laser spot so bright that a pixel's value overflows a float is refused (the
+// infinite pixel plus its shot noise was NaN, stored as 0: saturated pixels came out black).
+TEST(RenderTest, ExposuresThatOverflowAFloatAreRefused) {
+  Scene scene;
+  scene.solids.push_back(
+      MakeRectangle("wall", Vec3d(0, 0, 5000), Vec3d::UnitX(), Vec3d::UnitY(), 5000, 5000, Gray(0.5)));
+  RenderOptions opt;
+  opt.exposure_dn = 1e39;
+  EXPECT_EQ(RenderScene(scene, CameraModel{}, Rigid3d::Identity(), opt).status().code(), StatusCode::kInvalidArgument);
+  scene.laser_spots.push_back({Vec3d(0, 0, 5000), 3.0, 1e39, Vec3d::Ones()});
+  EXPECT_EQ(RenderScene(scene, CameraModel{}, Rigid3d::Identity(), {}).status().code(), StatusCode::kInvalidArgument);
+}
+
 // Pixels are integrated independently, so any number of threads gives the very same image (textured
 // floor and wall, a box with edges crossing tile rows, lens distortion, a laser spot, colour).
 TEST(RenderTest, ThreadCountDoesNotChangeTheImage) {

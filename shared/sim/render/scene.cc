@@ -154,10 +154,10 @@ Status Scene::Check() const {
   IDI_RETURN_IF_ERROR(lighting.Check());
   for (std::size_t i = 0; i < laser_spots.size(); ++i) {
     const LaserSpot& s = laser_spots[i];
-    if (!FiniteVec(s.center) || !(s.sigma > 0 && std::isfinite(s.sigma)) || !(s.peak >= 0 && std::isfinite(s.peak)) ||
-        !FiniteVec(s.color) || s.color.minCoeff() < 0) {
+    if (!FiniteVec(s.center) || !(s.sigma > 0 && std::isfinite(s.sigma)) || !(s.peak >= 0 && s.peak <= 1e6) ||
+        !FiniteVec(s.color) || s.color.minCoeff() < 0 || s.color.maxCoeff() > 1e3) {
       return InvalidArgument("laser spot " + std::to_string(i) +
-                             ": needs a finite centre, sigma > 0, peak >= 0 and a non-negative colour");
+                             ": needs a finite centre, sigma > 0, peak in [0, 1e6] and a colour in [0, 1e3]");
     }
   }
   if (!FiniteVec(background) || background.minCoeff() < 0) {
