@@ -26,6 +26,42 @@ std::string Join(const std::vector<std::string>& names) {
   return s;
 }
 
+// Well-formed UTF-8 (no overlong forms, surrogates or code points beyond U+10FFFF): names go into the
+// ground truth's JSON, which cannot hold other bytes.
+bool IsValidUtf8(const std::string& s) {
+  std::size_t i = 0;
+  while (i < s.size()) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    int n = 0;
+    unsigned cp = 0;
+    if (c < 0x80) {
+      ++i;
+      continue;
+    } else if ((c & 0xE0) == 0xC0) {
+      n = 1;
+      cp = c & 0x1Fu;
+    } else if ((c & 0xF0) == 0xE0) {
+      n = 2;
+      cp = c & 0x0Fu;
+    } else if ((c & 0xF8) == 0xF0) {
+      n = 3;
+      cp = c & 0x07u;
+    } else {
+      return false;
+    }
+    if (i + static_cast<std::size_t>(n) >= s.size()) return false;  // the sequence is cut off
+    for (int k = 1; k <= n; ++k) {
+      const auto d = static_cast<unsigned char>(s[i + static_cast<std::size_t>(k)]);
+      if ((d & 0xC0) != 0x80) return false;
+      cp = (cp << 6) | (d & 0x3Fu);
+    }
+    const unsigned min_cp[] = {0, 0x80, 0x800, 0x10000};
+    if (cp < min_cp[n] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return false;
+    i += static_cast<std::size_t>(n) + 1;
+  }
+  return true;
+}
+
 std::string KeyPath(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
 
 // A YAML map whose keys must all be in `allowed`.
@@ -136,6 +172,10 @@ class SceneFields {
     if (!Has(key)) return Status::Ok();
     if (!map_[key].IsScalar()) {
       return InvalidArgument(SceneWhere(source_, map_[key]) + ": " + KeyPath(path_, key) + " must be a string");
+    }
+    if (!IsValidUtf8(map_[key].Scalar())) {
+      return InvalidArgument(SceneWhere(source_, map_[key]) + ": " + KeyPath(path_, key) +
+                             " is not valid UTF-8 (save the file as UTF-8)");
     }
     *out = map_[key].Scalar();
     return Status::Ok();

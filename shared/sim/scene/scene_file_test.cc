@@ -133,6 +133,11 @@ TEST(SceneFileTest, NanAndGarbageAreRejected) {
   ExpectMentions(ParseErrorOf("- 1\n- 2\n"), {"the scene must be a map"});
   // yaml-cpp keeps a repeated key and reads its first value: the second was silently ignored.
   ExpectMentions(ParseErrorOf("seed: 1\nseed: 2\n"), {"scene.yaml:2", "key 'seed' given twice"});
+  // A name saved as Latin-1 (0xE9 alone): the truth JSON cannot hold it (the render wrote the image,
+  // then failed writing its JSON). UTF-8 names are fine.
+  ExpectMentions(ParseErrorOf("cameras: [{name: \"caf\xE9\"}]\n"), {"cameras[0].name", "not valid UTF-8"});
+  ExpectMentions(ParseErrorOf("objects: [{name: \"a\xC0\xAF\", kind: box}]\n"), {"objects[0].name", "UTF-8"});
+  EXPECT_TRUE(ParseWorkcellSceneYaml("cameras: [{name: \"caf\xC3\xA9\"}]\n", "scene.yaml").ok());
   ExpectMentions(ParseErrorOf("noise: {read_noise_dn: 1, read_noise_dn: 2}\n"), {"'noise.read_noise_dn' given twice"});
   // Barrel distortion the model cannot hold at this focal length: the corners' rays fold back (before,
   // it was rendered, the corners with a wrong footprint and the truth with points from the fold).
