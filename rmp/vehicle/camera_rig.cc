@@ -30,6 +30,7 @@ std::vector<Vec2d> GroundFootprint(const RigCamera& camera, double step_px, doub
   std::vector<Vec2d> polygon;
   for (const Vec2d& px : border) {
     const Vec3d dir = camera.vehicle_from_camera.RotateVector(PixelToRay(k, px));
+    if (!dir.allFinite()) continue;  // a pixel the lens model cannot undistort has no ray
     const Line3d ray{centre, dir};
     const auto s = IntersectLinePlane(ray, ground);
     Vec2d hit;

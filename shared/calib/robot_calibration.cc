@@ -193,6 +193,53 @@ Result<Unknowns> ClosedFormStart(const RobotCalibrationData& d, const RobotCalib
   return u;
 }
 
+// Every reading in set 1 or 2 with finite joints (the problem's blocks and the selection's sets follow
+// the set: another value made them disagree, an abort).
+Status CheckReadings(const RobotCalibrationData& d, const std::string& what) {
+  for (std::size_t i = 0; i < d.readings.size(); ++i) {
+    const AimReading& r = d.readings[i];
+    const std::string where =
+        "reading " + std::to_string(i + 1) + (r.row > 0 ? " (line " + std::to_string(r.row) + ")" : "");
+    if (r.set != 1 && r.set != 2) {
+      return InvalidArgument(what + ": " + where + ": set must be 1 or 2, got " + std::to_string(r.set));
+    }
+    for (std::size_t j = 0; j < r.q.size(); ++j) {
+      if (!std::isfinite(r.q[j])) {
+        return InvalidArgument(what + ": " + where + ": joint " + std::to_string(j + 1) + " is not a finite number");
+      }
+    }
+  }
+  return Status::Ok();
+}
+
+// §4.3.2's minimums again over the readings kept once the outliers are left out: a set emptied by
+// the outlier rounds leaves phi and the scale undetermined.
+Status CheckInliers(const RobotCalibrationData& d, const std::vector<bool>& active, const RobotCalibrationOptions& o) {
+  std::array<int, 2> per_set = {0, 0};
+  int kept = 0;
+  for (std::size_t i = 0; i < d.readings.size(); ++i) {
+    if (!active[i]) continue;
+    ++per_set[static_cast<std::size_t>(d.readings[i].set - 1)];
+    ++kept;
+  }
+  const int left_out = static_cast<int>(d.readings.size()) - kept;
+  const int needed = o.min_readings_per_unknown * kRobotCalibrationUnknowns;
+  if (kept < needed) {
+    return FailedPrecondition("robot calibration: " + std::to_string(left_out) +
+                              " readings were left out as outliers; the " + std::to_string(kept) +
+                              " kept are too few (" + std::to_string(needed) + " needed)");
+  }
+  for (std::size_t s = 0; s < 2; ++s) {
+    if (per_set[s] < o.min_readings_per_set) {
+      return FailedPrecondition("robot calibration: " + std::to_string(left_out) +
+                                " readings were left out as outliers; set " + std::to_string(s + 1) + " keeps " +
+                                std::to_string(per_set[s]) + ", need at least " +
+                                std::to_string(o.min_readings_per_set));
+    }
+  }
+  return Status::Ok();
+}
+
 struct Attempt {
   Unknowns u;
   optim::SolverSummary summary;
@@ -203,7 +250,8 @@ struct Attempt {
 };
 
 // One solve from `start`: a robust (Cauchy) solve, then outlier rounds of plain least squares, each
-// leaving out readings beyond the robust threshold.
+// leaving out readings beyond the robust threshold, and a last least-squares solve when the last round
+// left readings out. Accepted when it converged, fits the point and keeps enough readings.
 Attempt SolveFrom(const Unknowns& start, const RobotCalibrationData& d, const RobotCalibrationOptions& o,
                   const std::vector<bool>& free_robot, std::vector<double>* history, std::vector<int>* starts) {
   Attempt a;
@@ -257,57 +305,12 @@ Attempt SolveFrom(const Unknowns& start, const RobotCalibrationData& d, const Ro
     a.why = "solver: " + a.summary.message;
   } else if (!(st.rms_miss_mm <= o.max_rms_miss_mm)) {
     a.why = "the fit misses the point by " + std::to_string(st.rms_miss_mm) + " mm RMS";
+  } else if (const Status kept = CheckInliers(d, a.active, o); !kept.ok()) {
+    a.why = kept.message();  // another start may leave fewer readings out
   } else {
     a.accepted = true;
   }
   return a;
-}
-
-// Every reading in set 1 or 2 with finite joints (the problem's blocks and the selection's sets follow
-// the set: another value made them disagree, an abort).
-Status CheckReadings(const RobotCalibrationData& d, const std::string& what) {
-  for (std::size_t i = 0; i < d.readings.size(); ++i) {
-    const AimReading& r = d.readings[i];
-    const std::string where =
-        "reading " + std::to_string(i + 1) + (r.row > 0 ? " (line " + std::to_string(r.row) + ")" : "");
-    if (r.set != 1 && r.set != 2) {
-      return InvalidArgument(what + ": " + where + ": set must be 1 or 2, got " + std::to_string(r.set));
-    }
-    for (std::size_t j = 0; j < r.q.size(); ++j) {
-      if (!std::isfinite(r.q[j])) {
-        return InvalidArgument(what + ": " + where + ": joint " + std::to_string(j + 1) + " is not a finite number");
-      }
-    }
-  }
-  return Status::Ok();
-}
-
-// §4.3.2's minimums again over the readings kept once the outliers are left out: a set emptied by
-// the outlier rounds leaves phi and the scale undetermined.
-Status CheckInliers(const RobotCalibrationData& d, const std::vector<bool>& active, const RobotCalibrationOptions& o) {
-  std::array<int, 2> per_set = {0, 0};
-  int kept = 0;
-  for (std::size_t i = 0; i < d.readings.size(); ++i) {
-    if (!active[i]) continue;
-    ++per_set[static_cast<std::size_t>(d.readings[i].set - 1)];
-    ++kept;
-  }
-  const int left_out = static_cast<int>(d.readings.size()) - kept;
-  const int needed = o.min_readings_per_unknown * kRobotCalibrationUnknowns;
-  if (kept < needed) {
-    return FailedPrecondition("robot calibration: " + std::to_string(left_out) +
-                              " readings were left out as outliers; the " + std::to_string(kept) +
-                              " kept are too few (" + std::to_string(needed) + " needed)");
-  }
-  for (std::size_t s = 0; s < 2; ++s) {
-    if (per_set[s] < o.min_readings_per_set) {
-      return FailedPrecondition("robot calibration: " + std::to_string(left_out) +
-                                " readings were left out as outliers; set " + std::to_string(s + 1) + " keeps " +
-                                std::to_string(per_set[s]) + ", need at least " +
-                                std::to_string(o.min_readings_per_set));
-    }
-  }
-  return Status::Ok();
 }
 
 }  // namespace

@@ -91,7 +91,11 @@ Vec2d PixelToNormalized(const CameraModel& camera, const Vec2d& pixel) {
   }
   // Gauss-Newton on Distort(xn) = xd, starting from xn = xd; the Jacobian by central differences
   // is accurate enough because the map is smooth and the step only needs to contract.
+  // Started within the valid radius: from beyond it (pincushion distortion that folds further out), the
+  // iteration can settle on the fold's branch although a valid inverse exists.
+  const double r_max = MonotonicRadius(camera);
   Vec2d xn = xd;
+  if (std::isfinite(r_max) && xd.norm() > 0.9 * r_max) xn = xd * (0.9 * r_max / xd.norm());
   for (int iter = 0; iter < 20; ++iter) {
     const Vec2d r = Distort(p, xn) - xd;
     if (r.norm() < 1e-14) {
@@ -108,7 +112,6 @@ Vec2d PixelToNormalized(const CameraModel& camera, const Vec2d& pixel) {
     xn -= j.inverse() * r;
   }
   // Not a solution, or the one of a fold of the model (a ray beyond its valid radius): no ray.
-  const double r_max = MonotonicRadius(camera);
   if (!((Distort(p, xn) - xd).norm() <= 1e-9 * std::max(1.0, xd.norm())) ||
       (std::isfinite(r_max) && !(xn.norm() <= r_max))) {
     return Vec2d::Constant(std::numeric_limits<double>::quiet_NaN());

@@ -79,8 +79,9 @@ Vec2<T> ProjectToPixel(const T* p, const Vec3<T>& point_in_cam) {
 
 // The undistorted radius (of x/z, y/z) up to which the radial model r (1 + k1 r^2 + k2 r^4 + k3 r^6)
 // still grows with r: beyond it the model folds back, and a point there would land on the pixel of a
-// point nearer the axis. Infinity when it grows everywhere (no distortion, or a real lens's values).
-// The tangential terms are left out (they are small where a model is valid).
+// point nearer the axis. Infinity when it grows out to r = 10 (84 deg off axis; no distortion, or a real
+// lens's values); found on a grid of 0.025 in r^2, so a dip narrower than that is not seen. The
+// tangential terms are left out (they are small where a model is valid).
 double MonotonicRadius(const CameraModel& camera);
 
 // Projection with a visibility check: nullopt when the point is not in front of the camera, or lies

@@ -76,6 +76,13 @@ TEST(PinholeTest, StrongBarrelDistortionBeyondItsFoldHasNoPixelAndNoRay) {
   c.params[kFx] = c.params[kFy] = 800;  // the corners at distorted radius 0.5: within the fold
   EXPECT_TRUE(CheckDistortionCoversImage(c).ok());
   EXPECT_TRUE(CheckDistortionCoversImage(DistortedCamera()).ok());
+  // Pincushion that folds further out (k1 0.2, k2 -0.05: r_max 1.88): the point at r = 1.6 distorts to
+  // 1.895, and its inverse is found (started at the distorted radius, beyond r_max, the iteration
+  // settled on the fold's branch, 2.108, and the pixel had no ray).
+  CameraModel pin;
+  pin.params = {400, 400, 319.5, 239.5, 0.2, -0.05, 0, 0, 0};
+  const Vec2d far = *Project(pin, Vec3d(1.6, 0, 1));
+  EXPECT_LT((PixelToNormalized(pin, far) - Vec2d(1.6, 0)).norm(), 1e-9);
 }
 
 TEST(PinholeTest, UndistortPixelIsIdentityWithoutDistortion) {

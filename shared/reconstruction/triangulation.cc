@@ -22,7 +22,9 @@ std::optional<TriangulatedPoint> TriangulatePoint(const std::vector<PointObserva
     }
     weight.push_back(o.sigma_px > 0 ? 1.0 / o.sigma_px : 1.0);
     const Rigid3d world_from_cam = o.cam_from_world.Inverse();
-    rays.push_back({world_from_cam.translation, world_from_cam.RotateVector(PixelToRay(*o.camera, o.pixel))});
+    const Vec3d ray = PixelToRay(*o.camera, o.pixel);
+    if (!ray.allFinite()) return std::nullopt;  // a pixel the lens model cannot undistort
+    rays.push_back({world_from_cam.translation, world_from_cam.RotateVector(ray)});
   }
   double max_angle = 0;
   for (std::size_t i = 0; i < rays.size(); ++i) {

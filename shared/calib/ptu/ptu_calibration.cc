@@ -128,14 +128,6 @@ Status FixPtuGauges(PtuSolveState& s, const std::vector<PtuObservation>& obs, co
       scale(j) = norm > 0 ? 1.0 / norm : 0.0;  // a column of zeros: a parameter the data never touch
     }
     const Eigen::MatrixXd js = eval.jacobian * scale.asDiagonal();
-    // Fewer residuals than parameters: the data cannot determine them (and the SVD below would have
-    // fewer singular values than columns).
-    if (js.rows() < n) {
-      return InvalidArgument(
-          fmt::format("too few observations: {} residuals (2 per observation) for {} free parameters; take more poses",
-                      js.rows(),
-                      n));
-    }
     Eigen::JacobiSVD<Eigen::MatrixXd> svd(js, Eigen::ComputeThinV);
     const Eigen::VectorXd& sv = svd.singularValues();
     if (!(sv(0) > 0)) return FailedPrecondition("the observations do not constrain the parameters");
@@ -151,6 +143,14 @@ Status FixPtuGauges(PtuSolveState& s, const std::vector<PtuObservation>& obs, co
       }
     }
     if (v.size() == 0) {
+      // Fewer residuals than parameters (after the untouched ones were fixed above): the data cannot
+      // determine them, and the SVD has fewer singular values than columns.
+      if (js.rows() < n) {
+        return InvalidArgument(fmt::format(
+            "too few observations: {} residuals (2 per observation) for {} free parameters; take more poses",
+            js.rows(),
+            n));
+      }
       rel = sv(n - 1) / s_max;
       if (rel >= rank_tolerance) return Status::Ok();
       v = svd.matrixV().col(n - 1);

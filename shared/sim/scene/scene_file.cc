@@ -519,8 +519,9 @@ Status WorkcellSceneSpec::Check() const {
   if (!light.ok()) return InvalidArgument(s + ": lighting: " + light.message());
   for (std::size_t i = 0; i < laser_spots.size(); ++i) {
     const LaserSpot& l = laser_spots[i];
-    if (!l.center.allFinite() || !(l.sigma > 0) || !(l.peak >= 0) || !std::isfinite(l.peak) || !std::isfinite(l.sigma)) {
-      return InvalidArgument(s + ": laser_spots[" + std::to_string(i) + "]: needs a finite center_mm, sigma_mm > 0, peak >= 0");
+    if (!l.center.allFinite() || !(l.sigma > 0) || !(l.peak >= 0 && l.peak <= 1e6) || !std::isfinite(l.sigma)) {
+      return InvalidArgument(s + ": laser_spots[" + std::to_string(i) +
+                             "]: needs a finite center_mm, sigma_mm > 0, peak in [0, 1e6]");
     }
   }
   const Status r = render.Check();

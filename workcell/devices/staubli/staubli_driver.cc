@@ -60,7 +60,8 @@ Result<int> TcpConnect(const std::string& host, int port, std::chrono::milliseco
   const std::string service = std::to_string(port);
   const int gai = ::getaddrinfo(host.c_str(), service.c_str(), &hints, &found);
   if (gai != 0) {
-    return NotFound("cannot resolve " + host + ": " + ::gai_strerror(gai));
+    // IoError, not NotFound: a caller must not take a controller it cannot reach for a target not found.
+    return IoError("cannot resolve " + host + ": " + ::gai_strerror(gai));
   }
   std::string last_error = "no address";
   Status last = IoError("cannot connect to " + host + ":" + service);
