@@ -75,6 +75,13 @@ TEST(RmpConfigTest, RefusesMistakesNamingFileLineAndKey) {
   ASSERT_FALSE(twice.ok());
   EXPECT_NE(twice.status().message().find("c.yaml:3: key 'planner.max_speed_mps' given twice"), std::string::npos)
       << twice.status().message();
+  // A lens model that folds back before the image corners (k1 -0.3 at fx 320: the corners are at radius
+  // 1.25, the model gives no ray beyond 0.70): refused when the file is read, naming the camera.
+  auto folded = ParseRmpConfig("rig:\n  right: {k1: -0.3}\n", "c.yaml");
+  ASSERT_FALSE(folded.ok());
+  EXPECT_NE(folded.status().message().find("right camera"), std::string::npos) << folded.status().message();
+  EXPECT_NE(folded.status().message().find("cannot be undistorted"), std::string::npos) << folded.status().message();
+  EXPECT_TRUE(ParseRmpConfig("rig:\n  right: {k1: -0.05}\n", "c.yaml").ok());
   // Values and keys of the wrong shape: an error naming the file (never a YAML exception).
   for (const char* text : {"[x]: 1\n", "planner: {[a]: 1}\n", "backend: [sim]\n", "control: {rate_hz: [1, 2]}\n"}) {
     const auto r = ParseRmpConfig(text, "c.yaml");

@@ -9,6 +9,7 @@
 #include <string>
 #include <thread>
 
+#include "shared/camera/pinhole.h"
 #include "shared/geometry/lines.h"
 #include "shared/reconstruction/epipolar.h"
 #include "shared/reconstruction/features_adapter.h"
@@ -69,6 +70,8 @@ Status StereoRig::Check() const {
     for (double p : c->intrinsics.params) {
       if (!std::isfinite(p)) return InvalidArgument(std::string("rig: ") + name + " camera has a non-finite intrinsic");
     }
+    // Checked here, when the configuration is read, not first when the features detector is built.
+    IDI_RETURN_IF_ERROR(CheckDistortionCoversImage(c->intrinsics).WithContext(std::string("rig: ") + name + " camera"));
     if (!c->vehicle_from_camera.rotation.allFinite() || !c->vehicle_from_camera.translation.allFinite()) {
       return InvalidArgument(std::string("rig: ") + name + " camera pose is not finite");
     }
