@@ -252,8 +252,16 @@ struct Attempt {
 // One solve from `start`: a robust (Cauchy) solve, then outlier rounds of plain least squares, each
 // leaving out readings beyond the robust threshold, and a last least-squares solve when the last round
 // left readings out. Accepted when it converged, fits the point and keeps enough readings.
-Attempt SolveFrom(const Unknowns& start, const RobotCalibrationData& d, const RobotCalibrationOptions& o,
-                  const std::vector<bool>& free_robot, std::vector<double>* history, std::vector<int>* starts) {
+// `name` says which start this is; each solve's label (name: kind) goes to `labels`, beside its start in
+// `starts`.
+Attempt SolveFrom(const Unknowns& start,
+                  const RobotCalibrationData& d,
+                  const RobotCalibrationOptions& o,
+                  const std::vector<bool>& free_robot,
+                  const std::string& name,
+                  std::vector<double>* history,
+                  std::vector<int>* starts,
+                  std::vector<std::string>* labels) {
   Attempt a;
   a.u = start;
   a.weights = Weights(a.u, d, o.noise);
@@ -262,7 +270,7 @@ Attempt SolveFrom(const Unknowns& start, const RobotCalibrationData& d, const Ro
   // Staged starts hold some robot parameters at their start values (a staged start's first stage).
   bool any_fixed = false;
   for (bool f : free_robot) any_fixed |= !f;
-  auto solve = [&](const optim::Loss& loss) -> bool {
+  auto solve = [&](const optim::Loss& loss, const std::string& kind) -> bool {
     Built b;
     Build(a.u, d, a.weights, a.active, loss, &b);
     if (any_fixed) {
@@ -276,6 +284,7 @@ Attempt SolveFrom(const Unknowns& start, const RobotCalibrationData& d, const Ro
     }
     a.summary = *s;
     starts->push_back(static_cast<int>(history->size()));
+    labels->push_back(name + ": " + kind);
     history->insert(history->end(), s->cost_per_iteration.begin(), s->cost_per_iteration.end());
     return true;
   };
@@ -283,7 +292,12 @@ Attempt SolveFrom(const Unknowns& start, const RobotCalibrationData& d, const Ro
   // or one before the last round left readings out.
   bool refit = false;
   for (int round = 0; round <= o.max_outlier_rounds; ++round) {
-    if (!solve(round == 0 ? optim::Loss{optim::LossKind::kCauchy, 3.0} : optim::Loss{})) return a;
+    const bool robust = round == 0;
+    if (!solve(robust ? optim::Loss{optim::LossKind::kCauchy, 3.0} : optim::Loss{},
+               robust ? std::string(any_fixed ? "robot held, robust (Cauchy loss)" : "robust (Cauchy loss)")
+                      : "least squares, outlier round " + std::to_string(round))) {
+      return a;
+    }
     if (any_fixed) break;
     const std::vector<ReadingFit> fits = Fits(a.u, d, a.weights);
     const double sigma = RobustSigma(fits, a.active);
@@ -299,7 +313,7 @@ Attempt SolveFrom(const Unknowns& start, const RobotCalibrationData& d, const Ro
     if (!changed && round > 0) break;
   }
   // The parameters (and the covariance at them) are the least-squares fit of the readings kept.
-  if (refit && !solve(optim::Loss{})) return a;
+  if (refit && !solve(optim::Loss{}, "least squares of the readings kept")) return a;
   const ResidualStats st = Stats(Fits(a.u, d, a.weights), a.active, 0);
   if (!a.summary.usable) {
     a.why = "solver: " + a.summary.message;
@@ -455,15 +469,22 @@ Result<RobotCalibrationResult> CalibrateRobot(const RobotCalibrationData& data, 
   RobotCalibrationResult out;
   out.start = "closed form: nominal model, point closest to each set's laser lines (§4.5.4)";
   const std::vector<bool> all_free(kRx130ParamCount, true);
-  Attempt best = SolveFrom(start, data, o, all_free, &out.cost_per_iteration, &out.solve_starts);
+  Attempt best = SolveFrom(
+      start, data, o, all_free, "closed-form start", &out.cost_per_iteration, &out.solve_starts, &out.solve_labels);
   std::mt19937 rng(o.restart_seed);
   while (!best.accepted && out.restarts < o.max_restarts) {
     ++out.restarts;
     Unknowns s = start;
     if (out.restarts == 1) {
       // Staged: first the point, direction and laser with the robot held nominal, then everything.
-      Attempt stage = SolveFrom(start, data, o, std::vector<bool>(kRx130ParamCount, false), &out.cost_per_iteration,
-                                &out.solve_starts);
+      Attempt stage = SolveFrom(start,
+                                data,
+                                o,
+                                std::vector<bool>(kRx130ParamCount, false),
+                                "restart 1, stage 1",
+                                &out.cost_per_iteration,
+                                &out.solve_starts,
+                                &out.solve_labels);
       s = stage.u;
     } else {
       // Perturbed (the dissertation's random restarts, §4.3.2), smaller each time.
@@ -474,7 +495,15 @@ Result<RobotCalibrationResult> CalibrateRobot(const RobotCalibrationData& data, 
         s.robot[i] += scale * (specs.spec(i).unit == Unit::kDegree ? DegToRad(0.05) : 0.5) * n(rng);
       }
     }
-    Attempt a = SolveFrom(s, data, o, all_free, &out.cost_per_iteration, &out.solve_starts);
+    Attempt a = SolveFrom(s,
+                          data,
+                          o,
+                          all_free,
+                          out.restarts == 1 ? std::string("restart 1, stage 2")
+                                            : "restart " + std::to_string(out.restarts) + " (perturbed)",
+                          &out.cost_per_iteration,
+                          &out.solve_starts,
+                          &out.solve_labels);
     if (a.accepted || !best.summary.usable) best = std::move(a);
   }
   if (!best.summary.usable) {

@@ -103,6 +103,7 @@ struct RobotCalibrationResult {
   std::vector<double> cost_per_iteration;  // every solve of the run, in order (Fig. 4.9)
   std::vector<int> solve_starts;           // where each solve begins in cost_per_iteration; the first
                                            // solve of each start uses a robust (Cauchy) loss
+  std::vector<std::string> solve_labels;   // beside solve_starts: which start and which kind of solve
   std::string start;                       // how the solve was started
   int restarts = 0;                        // restarts that were needed beyond the closed-form start
   std::vector<OutlierReading> outliers;

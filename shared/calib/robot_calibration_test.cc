@@ -77,6 +77,19 @@ TEST(RobotCalibrationTest, AMisAimedSpotIsReportedNotFitted) {
   EXPECT_NEAR(r->outliers[0].miss_mm, 6.0, 0.5);
   const ParamSet truth = Truth(arm);
   for (std::size_t i = 0; i < 22; ++i) EXPECT_NEAR(r->params.file_value(i), truth.file_value(i), 1e-5) << truth.spec(i).Key();
+  // Every solve is labelled for the cost plot (Fig. 4.9): the robust start, which left reading 17 out,
+  // then the least-squares round that found nothing more to leave out (the fit reported).
+  EXPECT_EQ(r->solve_labels,
+            (std::vector<std::string>{"closed-form start: robust (Cauchy loss)",
+                                      "closed-form start: least squares, outlier round 1"}));
+  EXPECT_EQ(r->solve_labels.size(), r->solve_starts.size());
+  // With no outlier rounds, the robust solve is followed by the least-squares fit of all readings.
+  o.max_outlier_rounds = 0;
+  const auto once = CalibrateRobot(data, o);
+  ASSERT_TRUE(once.ok()) << once.status().ToString();
+  EXPECT_EQ(once->solve_labels,
+            (std::vector<std::string>{"closed-form start: robust (Cauchy loss)",
+                                      "closed-form start: least squares of the readings kept"}));
 }
 
 // The minimum readings per set hold for the readings kept after the outliers are left out: three

@@ -56,8 +56,11 @@ sim::WorkcellTwinOptions TwinOptions(unsigned seed, double spot_sigma_mm) {
   return o;
 }
 
-Status SavePlots(const std::string& dir, const std::string& prefix, const std::vector<double>& cost,
+Status SavePlots(const std::string& dir,
+                 const std::string& prefix,
+                 const std::vector<double>& cost,
                  const std::vector<int>& solve_starts,
+                 const std::vector<std::string>& solve_labels,
                  const std::vector<std::pair<std::string, calib::SpreadStats>>& spreads) {
   if (dir.empty()) return Status::Ok();
   std::error_code ec;
@@ -68,8 +71,8 @@ Status SavePlots(const std::string& dir, const std::string& prefix, const std::v
   cf.x_axis().label = "iteration";
   cf.y_axis().label = "cost";
   cf.y_axis().log = true;
-  // One series per solve: the robust (Cauchy) start, then the plain least-squares rounds that leave
-  // the outliers out.
+  // One series per solve, labelled by the calibration (which start, and which solve of it: the robust
+  // (Cauchy) one, the least-squares rounds that leave outliers out, the final fit of the readings kept).
   std::vector<int> starts = solve_starts.empty() ? std::vector<int>{0} : solve_starts;
   starts.push_back(static_cast<int>(cost.size()));
   const std::array<plot::Color, 4> cost_colors = {plot::kBlue, plot::kOrange, plot::kGreen, plot::kPurple};
@@ -80,9 +83,9 @@ Status SavePlots(const std::string& dir, const std::string& prefix, const std::v
       y.push_back(std::max(cost[static_cast<std::size_t>(i)], 1e-300));
     }
     if (x.empty()) continue;
-    const std::string label = solve_starts.empty() ? "1/2 sum of whitened residuals^2"
-                              : k == 0              ? "robust start (Cauchy loss)"
-                                                    : fmt::format("least squares, round {}", k);
+    const std::string label = solve_starts.empty()      ? "1/2 sum of whitened residuals^2"
+                              : k < solve_labels.size() ? solve_labels[k]
+                                                        : fmt::format("solve {}", k + 1);
     cf.AddLine(x, y, label, cost_colors[k % cost_colors.size()], plot::Marker::kCircle);
   }
   IDI_RETURN_IF_ERROR(cf.SavePng(dir + "/" + prefix + "_cost.png"));
@@ -146,6 +149,7 @@ nlohmann::json RobotReport(const calib::RobotCalibrationResult& r, const calib::
                  {"time_ms", r.summary.time_ms}};
   j["cost_per_iteration"] = r.cost_per_iteration;
   j["solve_starts"] = r.solve_starts;
+  j["solve_labels"] = r.solve_labels;
   j["residuals"] = {{"rms_miss_mm", r.residuals.rms_miss_mm}, {"median_miss_mm", r.residuals.median_miss_mm},
                     {"max_miss_mm", r.residuals.max_miss_mm}, {"rms_normalized", r.residuals.rms_normalized},
                     {"variance_factor", r.residuals.variance_factor}};
@@ -312,7 +316,8 @@ Status RunCalibrateRobot(const RobotCommandOptions& o) {
     IDI_RETURN_IF_ERROR(WriteJson(o.report, report));
     spdlog::info("wrote {}", o.report);
   }
-  return SavePlots(o.plots, fmt::format("robot{}", o.arm), r.cost_per_iteration, r.solve_starts, spreads);
+  return SavePlots(
+      o.plots, fmt::format("robot{}", o.arm), r.cost_per_iteration, r.solve_starts, r.solve_labels, spreads);
 }
 
 
@@ -442,7 +447,7 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
     IDI_RETURN_IF_ERROR(WriteJson(o.report, report));
     spdlog::info("wrote {}", o.report);
   }
-  return SavePlots(o.plots, "rtu", r.cost_per_iteration, {}, spreads);
+  return SavePlots(o.plots, "rtu", r.cost_per_iteration, {}, {}, spreads);
 }
 
 void AddCalibrateCommand(CliApp& cli) {
