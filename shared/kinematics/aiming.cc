@@ -5,6 +5,8 @@
 #include <cmath>
 #include <functional>
 
+#include "shared/util/units.h"
+
 namespace idi {
 namespace {
 
@@ -23,10 +25,26 @@ Joints ClampToLimits(Joints q, const JointLimits& limits, double margin) {
 // the damping adapts (smaller after success, larger after failure), and joints are clamped inside
 // their limits. Central-difference Jacobian: the residuals are smooth trigonometric functions, so
 // h = 1e-6 rad gives ~1e-10 relative accuracy, plenty for fast convergence.
-Result<IkSummary> SolveLm(const ResidualFn& residual_of, const Joints& start, const JointLimits& limits,
-                          const IkOptions& options, const char* what) {
+// `accept_solution` is a last check of a configuration whose residual is below the tolerance.
+Result<IkSummary> SolveLm(const ResidualFn& residual_of,
+                          const Joints& start,
+                          const JointLimits& limits,
+                          const IkOptions& options,
+                          const char* what,
+                          const std::function<bool(const Joints&)>& accept_solution) {
   if (!options.Check()) {
     return InvalidArgument(std::string(what) + ": invalid IK options");
+  }
+  for (std::size_t i = 0; i < start.size(); ++i) {
+    if (!std::isfinite(start[i])) {
+      return InvalidArgument(std::string(what) + ": start joint " + std::to_string(i + 1) + " is not finite");
+    }
+    // std::clamp needs lo <= hi: a margin wider than half a joint's range has no configuration inside it.
+    if (!(limits.min[i] + options.limit_margin_rad <= limits.max[i] - options.limit_margin_rad)) {
+      return InvalidArgument(std::string(what) + ": joint " + std::to_string(i + 1) +
+                             "'s limits leave no room inside the margin of " +
+                             std::to_string(options.limit_margin_rad) + " rad");
+    }
   }
   Joints q = ClampToLimits(start, limits, options.limit_margin_rad);
   std::optional<Residual> r = residual_of(q);
@@ -90,9 +108,13 @@ Result<IkSummary> SolveLm(const ResidualFn& residual_of, const Joints& start, co
   }
   summary.q = q;
   summary.residual_mm = std::sqrt(cost);
-  if (summary.residual_mm < options.tolerance_mm) {
+  if (summary.residual_mm < options.tolerance_mm && accept_solution(q)) {
     summary.message = "converged";
     return summary;
+  }
+  if (summary.residual_mm < options.tolerance_mm) {
+    return NotConverged(std::string(what) +
+                        ": the solution found is not acceptable (the target lies behind the laser)");
   }
   return NotConverged(std::string(what) + ": residual " + std::to_string(summary.residual_mm) + " mm after " +
                       std::to_string(summary.iterations) +
@@ -138,10 +160,18 @@ Result<IkSummary> AimLaserAt(const ParamSet& robot, const ParamSet& laser, const
     r << p.x(), p.y();
     if (rho > 1e-12) {
       r *= dist * std::atan2(rho, p.z()) / rho;
+    } else if (p.z() < 0) {
+      // Straight behind the laser: the offset (x, y) is rounding noise, but the beam must sweep half a turn.
+      r << dist * kPi, 0.0;
     }
     return r;
   };
-  return SolveLm(residual, start, limits, options, "aiming the laser");
+  // Converged means on the beam and in front of the laser (never the backward half of its line).
+  auto in_front = [&](const Joints& q) {
+    const Rigid3d base_from_laser = Rx130BaseFromFlange(robot.data(), q.data()) * FlangeFromLaser(laser.data());
+    return (base_from_laser.Inverse() * target).z() > 0;
+  };
+  return SolveLm(residual, start, limits, options, "aiming the laser", in_front);
 }
 
 Result<IkSummary> SolveFlangePose(const ParamSet& robot, const Joints& start, const Rigid3d& base_from_flange,
@@ -149,6 +179,10 @@ Result<IkSummary> SolveFlangePose(const ParamSet& robot, const Joints& start, co
                                   double orientation_weight_mm) {
   if (robot.size() != kRx130ParamCount) {
     return InvalidArgument("SolveFlangePose: expected 18 robot parameters");
+  }
+  if (!base_from_flange.rotation.allFinite() || !base_from_flange.translation.allFinite() ||
+      !std::isfinite(orientation_weight_mm)) {
+    return InvalidArgument("SolveFlangePose: the target pose is not finite");
   }
   auto residual = [&](const Joints& q) -> std::optional<Residual> {
     const Rigid3d t = Rx130BaseFromFlange(robot.data(), q.data());
@@ -158,7 +192,7 @@ Result<IkSummary> SolveFlangePose(const ParamSet& robot, const Joints& start, co
     r.tail<3>() = orientation_weight_mm * dr.angle() * dr.axis();  // rotation error, mm per radian
     return r;
   };
-  return SolveLm(residual, start, limits, options, "flange pose IK");
+  return SolveLm(residual, start, limits, options, "flange pose IK", [](const Joints&) { return true; });
 }
 
 }  // namespace idi

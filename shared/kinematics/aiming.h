@@ -1,6 +1,7 @@
 // Aiming the laser tool (§3.3.2, eqs. 3.6-3.8) and numeric inverse kinematics for the RX-130.
 #pragma once
 
+#include <cmath>
 #include <optional>
 
 #include "shared/geometry/rigid3.h"
@@ -26,7 +27,12 @@ struct IkOptions {
   double max_step_rad = 0.2;         // largest joint change per iteration
   double limit_margin_rad = 1e-4;    // stay this far inside the joint limits
   double min_laser_length_mm = 50;   // the target must lie this far in front of the laser origin
-  bool Check() const { return max_iterations > 0 && tolerance_mm > 0 && max_step_rad > 0; }
+  // Finite and positive (the margin and the laser length may be 0); a NaN margin turned the joint limits off.
+  bool Check() const {
+    return max_iterations > 0 && tolerance_mm > 0 && std::isfinite(tolerance_mm) && max_step_rad > 0 &&
+           std::isfinite(max_step_rad) && limit_margin_rad >= 0 && std::isfinite(limit_margin_rad) &&
+           min_laser_length_mm >= 0 && std::isfinite(min_laser_length_mm);
+  }
 };
 
 struct IkSummary {

@@ -2,7 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
+#include <cmath>
 #include <random>
+#include <string>
+#include <vector>
 
 namespace idi {
 namespace {
@@ -73,6 +77,56 @@ TEST(AimingTest, RefusesBadTargets) {
   EXPECT_FALSE(AimLaserAt(robot, laser, start, line.origin, Rx130JointLimits(), opt).ok());
   const auto nan = AimLaserAt(robot, laser, start, Vec3d(NAN, 0, 0), Rx130JointLimits(), opt);
   EXPECT_EQ(nan.status().code(), StatusCode::kInvalidArgument);
+}
+
+// A target on the backward half of the beam's line is offset from the beam only by rounding noise; that
+// noise was taken for a converged aim (at iteration 0) with the beam pointing away from the target. Now
+// the start is turned round, or the call fails; it never reports the backward line as aimed.
+TEST(AimingTest, ATargetStraightBehindTheLaserIsNeverReportedAsAimed) {
+  const ParamSet robot = Rx130Nominal();
+  const ParamSet laser = LaserNominal();
+  const JointLimits limits = Rx130JointLimits();
+  int behind_exactly = 0;
+  for (const auto& deg : std::vector<std::array<double, 6>>{{0, 0, 0, 0, 0, 0},
+                                                            {0, -90, 90, 0, 0, 0},
+                                                            {10, -60, 100, 0, 90, 0},
+                                                            {-20, -45, 120, 30, 60, 15},
+                                                            {35, -80, 95, -10, 45, 90}}) {
+    const Joints start = JointsFromDeg({deg[0], deg[1], deg[2], deg[3], deg[4], deg[5]});
+    const Line3d line = LaserLineInBase(robot.data(), laser.data(), start.data());
+    const Vec3d target = line.origin - 500.0 * line.direction;
+    if (DistancePointToLine(line, target) < 1e-7) ++behind_exactly;
+    const auto r = AimLaserAt(robot, laser, start, target, limits);
+    if (!r.ok()) continue;
+    const Line3d aimed = LaserLineInBase(robot.data(), laser.data(), r->q.data());
+    EXPECT_GT(ProjectOntoLine(aimed, target), 0.0) << "start " << deg[0] << " " << deg[1] << " " << deg[2];
+    EXPECT_LT(DistancePointToLine(aimed, target), 1e-6);
+  }
+  EXPECT_EQ(behind_exactly, 5);  // every start had the target within rounding of its backward beam
+}
+
+TEST(AimingTest, RefusesOptionsAndStartsThatTurnTheLimitsOff) {
+  const ParamSet robot = Rx130Nominal();
+  const ParamSet laser = LaserNominal();
+  const Joints start = JointsFromDeg({0, -60, 100, 0, 90, 0});
+  const Vec3d target(3000, 200, 900);
+  IkOptions nan_margin;
+  nan_margin.limit_margin_rad = NAN;  // std::clamp(q, NaN, NaN) left every joint unclamped
+  EXPECT_EQ(AimLaserAt(robot, laser, start, target, Rx130JointLimits(), nan_margin).status().code(),
+            StatusCode::kInvalidArgument);
+  IkOptions wide_margin;
+  wide_margin.limit_margin_rad = 5.0;  // wider than half of J2's range: lo > hi in std::clamp
+  const auto wide = AimLaserAt(robot, laser, start, target, Rx130JointLimits(), wide_margin);
+  EXPECT_EQ(wide.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(wide.status().message().find("leave no room"), std::string::npos) << wide.status().message();
+  Joints nan_start = start;
+  nan_start[2] = NAN;
+  const auto ns = AimLaserAt(robot, laser, nan_start, target, Rx130JointLimits());
+  EXPECT_EQ(ns.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(ns.status().message().find("start joint 3"), std::string::npos) << ns.status().message();
+  Rigid3d pose = Rx130BaseFromFlange(robot.data(), start.data());
+  pose.translation.x() = NAN;
+  EXPECT_EQ(SolveFlangePose(robot, start, pose, Rx130JointLimits()).status().code(), StatusCode::kInvalidArgument);
 }
 
 TEST(AimingTest, FlangePoseIkRecoversForwardKinematics) {
