@@ -207,28 +207,49 @@ Result<std::string> SerialPort::ReadSome(std::chrono::milliseconds timeout) {
 Result<std::string> SerialPort::ReadLine(std::chrono::milliseconds timeout) {
   const auto deadline = SerialClock::now() + timeout;
   while (true) {
-    // Skip terminators left from a previous line (CR LF, or blank lines).
-    const std::size_t start = buffer_.find_first_not_of("\r\n");
-    if (start == std::string::npos) {
-      buffer_.clear();
-    } else if (start > 0) {
-      buffer_.erase(0, start);
+    if (skip_to_line_end_) {
+      // The tail of a line that overflowed: dropped up to its end.
+      const std::size_t end = buffer_.find_first_of("\r\n");
+      if (end == std::string::npos) {
+        buffer_.clear();
+      } else {
+        buffer_.erase(0, end);
+        skip_to_line_end_ = false;
+      }
     }
-    const std::size_t end = buffer_.find_first_of("\r\n");
-    if (end != std::string::npos) {
-      std::string line = buffer_.substr(0, end);
-      buffer_.erase(0, end + 1);
-      return line;
-    }
-    if (buffer_.size() > options_.max_line_bytes) {
-      const std::size_t dropped = buffer_.size();
-      buffer_.clear();
-      return DeviceError(name_ + ": " + std::to_string(dropped) + " bytes without a line end (garbage?); dropped");
+    if (!skip_to_line_end_) {
+      // Skip terminators left from a previous line (CR LF, or blank lines).
+      const std::size_t start = buffer_.find_first_not_of("\r\n");
+      if (start == std::string::npos) {
+        buffer_.clear();
+      } else if (start > 0) {
+        buffer_.erase(0, start);
+      }
+      const std::size_t end = buffer_.find_first_of("\r\n");
+      if (end != std::string::npos && end > options_.max_line_bytes) {
+        buffer_.erase(0, end + 1);
+        return DeviceError(name_ + ": a line of " + std::to_string(end) + " bytes (more than " +
+                           std::to_string(options_.max_line_bytes) + "; garbage?); dropped");
+      }
+      if (end != std::string::npos) {
+        std::string line = buffer_.substr(0, end);
+        buffer_.erase(0, end + 1);
+        return line;
+      }
+      if (buffer_.size() > options_.max_line_bytes) {
+        const std::size_t dropped = buffer_.size();
+        buffer_.clear();
+        skip_to_line_end_ = true;
+        return DeviceError(name_ + ": " + std::to_string(dropped) +
+                           " bytes without a line end (garbage?); dropped, with the rest of that line");
+      }
     }
     IDI_ASSIGN_OR_RETURN(const bool got, FillBuffer(SerialMsLeft(deadline)));
     if (!got && SerialClock::now() >= deadline) {
       return Timeout(name_ + ": no complete line within " + std::to_string(timeout.count()) + " ms" +
-                     (buffer_.empty() ? std::string() : " (partial: " + std::to_string(buffer_.size()) + " bytes)"));
+                     (buffer_.empty() || skip_to_line_end_
+                          ? std::string()
+                          : " (partial: " + std::to_string(buffer_.size()) + " bytes)"));
     }
   }
 }
@@ -237,16 +258,39 @@ Result<std::string> SerialPort::ReadUntil(std::string_view delimiter, std::chron
   IDI_CHECK(!delimiter.empty(), "ReadUntil needs a delimiter");
   const auto deadline = SerialClock::now() + timeout;
   while (true) {
-    const std::size_t pos = buffer_.find(delimiter);
-    if (pos != std::string::npos) {
-      std::string block = buffer_.substr(0, pos);
-      buffer_.erase(0, pos + delimiter.size());
-      return block;
+    if (!skip_to_.empty()) {
+      // The rest of a block that overflowed, up to and with its delimiter (a delimiter split across
+      // reads keeps its first bytes buffered).
+      const std::size_t pos = buffer_.find(skip_to_);
+      if (pos == std::string::npos) {
+        const std::size_t keep = std::min(buffer_.size(), skip_to_.size() - 1);
+        buffer_.erase(0, buffer_.size() - keep);
+      } else {
+        buffer_.erase(0, pos + skip_to_.size());
+        skip_to_.clear();
+      }
     }
-    if (buffer_.size() > options_.max_line_bytes) {
-      const std::size_t dropped = buffer_.size();
-      buffer_.clear();
-      return DeviceError(name_ + ": " + std::to_string(dropped) + " bytes without the delimiter (garbage?); dropped");
+    if (skip_to_.empty()) {
+      const std::size_t pos = buffer_.find(delimiter);
+      if (pos != std::string::npos && pos > options_.max_line_bytes) {
+        buffer_.erase(0, pos + delimiter.size());
+        return DeviceError(name_ + ": a block of " + std::to_string(pos) + " bytes before the delimiter (more than " +
+                           std::to_string(options_.max_line_bytes) + "; garbage?); dropped");
+      }
+      if (pos != std::string::npos) {
+        std::string block = buffer_.substr(0, pos);
+        buffer_.erase(0, pos + delimiter.size());
+        return block;
+      }
+      if (buffer_.size() > options_.max_line_bytes + delimiter.size()) {
+        // Kept: the last bytes, which may be the start of the delimiter.
+        const std::size_t keep = delimiter.size() - 1;
+        const std::size_t dropped = buffer_.size() - keep;
+        buffer_.erase(0, dropped);
+        skip_to_ = std::string(delimiter);
+        return DeviceError(name_ + ": " + std::to_string(dropped) +
+                           " bytes without the delimiter (garbage?); dropped, with the rest of that block");
+      }
     }
     IDI_ASSIGN_OR_RETURN(const bool got, FillBuffer(SerialMsLeft(deadline)));
     if (!got && SerialClock::now() >= deadline) {
@@ -256,10 +300,21 @@ Result<std::string> SerialPort::ReadUntil(std::string_view delimiter, std::chron
 }
 
 std::size_t SerialPort::DiscardInput() {
-  const std::size_t dropped = buffer_.size();
+  std::size_t dropped = buffer_.size();
   buffer_.clear();
+  skip_to_line_end_ = false;
+  skip_to_.clear();
   if (::isatty(fd_)) {
     ::tcflush(fd_, TCIFLUSH);
+  } else {
+    // A socket or pipe has no tcflush: what the kernel holds is read and dropped (a late reply would
+    // otherwise be taken for the answer to the next command).
+    for (int k = 0; k < 4096; ++k) {
+      auto got = FillBuffer(0);
+      if (!got.ok() || !got.value()) break;
+      dropped += buffer_.size();
+      buffer_.clear();
+    }
   }
   return dropped;
 }
@@ -267,6 +322,8 @@ std::size_t SerialPort::DiscardInput() {
 std::string SerialPort::DrainUntilQuiet(std::chrono::milliseconds quiet, std::chrono::milliseconds max_wait) {
   const auto deadline = SerialClock::now() + max_wait;
   std::string dropped = std::exchange(buffer_, std::string());
+  skip_to_line_end_ = false;  // whatever arrives after the quiet is a fresh start
+  skip_to_.clear();
   while (SerialClock::now() < deadline) {
     const int wait_ms = std::min(static_cast<int>(quiet.count()), SerialMsLeft(deadline));
     auto got = FillBuffer(wait_ms);

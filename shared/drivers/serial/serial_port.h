@@ -54,12 +54,16 @@ class SerialPort {
   // Whatever arrives within `timeout` (buffered bytes first); at least one byte, else Timeout.
   Result<std::string> ReadSome(std::chrono::milliseconds timeout);
   // The next line ended by CR or LF, without its terminator; empty lines are skipped. Timeout when no
-  // complete line arrives in time (the partial line stays buffered for the next call).
+  // complete line arrives in time (the partial line stays buffered for the next call). A line longer
+  // than max_line_bytes is DeviceError, and dropped whole: when it overflowed before its end arrived,
+  // the bytes up to that end are dropped too, so its tail is never returned as a line.
   Result<std::string> ReadLine(std::chrono::milliseconds timeout);
   // Everything up to `delimiter` (removed from the stream, not returned), e.g. the BH8's "=> " prompt.
+  // A block longer than max_line_bytes is DeviceError and dropped whole, as in ReadLine.
   Result<std::string> ReadUntil(std::string_view delimiter, std::chrono::milliseconds timeout);
 
-  // Drops buffered input, ours and the kernel's. Returns the number of bytes dropped from our buffer.
+  // Drops buffered input, ours and the kernel's. Returns the number of bytes dropped from our buffer (and,
+  // on a socket or pipe, those read from the kernel's; a terminal's are flushed uncounted).
   std::size_t DiscardInput();
   // Reads and drops bytes until the line has been quiet for `quiet` (or `max_wait` passed): clears
   // power-up chatter and late replies. Returns what was dropped.
@@ -77,6 +81,10 @@ class SerialPort {
   std::string name_;
   SerialOptions options_;
   std::string buffer_;
+  // After an overflow, the rest of the overlong line (or block) is dropped up to its end: CR/LF when
+  // skip_to_line_end_, else skip_to_ (a ReadUntil delimiter) when not empty.
+  bool skip_to_line_end_ = false;
+  std::string skip_to_;
 };
 
 }  // namespace idi::drivers

@@ -1,6 +1,7 @@
 #include "shared/drivers/serial/serial_port.h"
 
 #include <gtest/gtest.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include "shared/drivers/serial/pty.h"
@@ -66,6 +67,55 @@ TEST(SerialPortTest, EndlessGarbageIsDroppedWithAClearErrorAndTheNextLineIsRead)
   p.host->DrainUntilQuiet(milliseconds(20), milliseconds(200));
   ASSERT_TRUE(p.device->Write("*\r\n", milliseconds(100)).ok());
   EXPECT_EQ(p.host->ReadLine(milliseconds(200)).value(), "*");
+}
+
+// A line longer than the limit is dropped whole: one whose end arrived with it, and one that overflowed
+// before its end, whose tail was returned by the next call as if it were a reply.
+TEST(SerialPortTest, AnOverlongLineIsDroppedWholeAndItsTailIsNeverALine) {
+  SerialOptions options;
+  options.max_line_bytes = 64;
+  auto p = SerialTestPair::Make(options);
+  ASSERT_TRUE(p.device->Write(std::string(200, 'x') + "\r*\r", milliseconds(100)).ok());
+  const auto whole = p.host->ReadLine(milliseconds(200));
+  ASSERT_EQ(whole.status().code(), StatusCode::kDeviceError);
+  EXPECT_NE(whole.status().message().find("a line of 200 bytes"), std::string::npos) << whole.status().message();
+  EXPECT_EQ(p.host->ReadLine(milliseconds(200)).value(), "*");
+
+  ASSERT_TRUE(p.device->Write(std::string(200, 'x'), milliseconds(100)).ok());
+  const auto overflow = p.host->ReadLine(milliseconds(200));
+  ASSERT_EQ(overflow.status().code(), StatusCode::kDeviceError);
+  ASSERT_TRUE(p.device->Write("yyy\r* 1\r", milliseconds(100)).ok());
+  const auto next = p.host->ReadLine(milliseconds(200));
+  ASSERT_TRUE(next.ok()) << next.status().ToString();
+  EXPECT_EQ(*next, "* 1");  // not "yyy", the overlong line's tail
+}
+
+TEST(SerialPortTest, AnOverlongBlockBeforeAPromptIsDroppedWhole) {
+  SerialOptions options;
+  options.max_line_bytes = 64;
+  auto p = SerialTestPair::Make(options);
+  ASSERT_TRUE(p.device->Write(std::string(100, 'G') + "=> ok=> ", milliseconds(100)).ok());
+  EXPECT_EQ(p.host->ReadUntil("=> ", milliseconds(200)).status().code(), StatusCode::kDeviceError);
+  EXPECT_EQ(p.host->ReadUntil("=> ", milliseconds(200)).value(), "ok");
+  ASSERT_TRUE(p.device->Write(std::string(200, 'G'), milliseconds(100)).ok());
+  EXPECT_EQ(p.host->ReadUntil("=> ", milliseconds(200)).status().code(), StatusCode::kDeviceError);
+  ASSERT_TRUE(p.device->Write("GGG=", milliseconds(100)).ok());
+  EXPECT_EQ(p.host->ReadUntil("=> ", milliseconds(30)).status().code(), StatusCode::kTimeout);
+  ASSERT_TRUE(p.device->Write("> 1234\r\n=> ", milliseconds(100)).ok());  // the delimiter split across writes
+  EXPECT_EQ(p.host->ReadUntil("=> ", milliseconds(200)).value(), "1234\r\n");
+}
+
+// On a socket (the VAL3 link) there is no tcflush: a late reply the kernel holds is dropped too.
+TEST(SerialPortTest, DiscardInputDropsWhatASocketHolds) {
+  int fds[2];
+  ASSERT_EQ(::socketpair(AF_UNIX, SOCK_STREAM, 0, fds), 0);
+  auto host = SerialPort::FromFd(fds[0], "socket", {});
+  ASSERT_EQ(::write(fds[1], "late\r", 5), 5);
+  ::usleep(20000);
+  EXPECT_EQ(host->DiscardInput(), 5u);
+  ASSERT_EQ(::write(fds[1], "fresh\r", 6), 6);
+  EXPECT_EQ(host->ReadLine(milliseconds(200)).value(), "fresh");
+  ::close(fds[1]);
 }
 
 TEST(SerialPortTest, WritesReachTheOtherEndUnchanged) {
