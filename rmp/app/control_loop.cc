@@ -122,15 +122,15 @@ Status ControlLoop::Shutdown() {
   return driver_->Shutdown();
 }
 
-Pose2 ControlLoop::OdometryAt(int64_t t_ns) const {
-  if (odom_history_.empty()) return {};
-  if (t_ns <= odom_history_.front().first) return odom_history_.front().second;
+std::optional<Pose2> ControlLoop::OdometryAt(int64_t t_ns) const {
+  if (odom_history_.empty() || t_ns < odom_history_.front().first) return std::nullopt;
+  if (static_cast<double>(t_ns - odom_history_.back().first) * 1e-9 > options_.max_odometry_age_s) return std::nullopt;
   for (std::size_t i = 1; i < odom_history_.size(); ++i) {
     const auto& [t1, p1] = odom_history_[i];
     if (t1 < t_ns) continue;
     const auto& [t0, p0] = odom_history_[i - 1];
     const double f = t1 > t0 ? static_cast<double>(t_ns - t0) / static_cast<double>(t1 - t0) : 1.0;
-    return {p0.x + f * (p1.x - p0.x), p0.y + f * (p1.y - p0.y), p0.yaw + f * (p1.yaw - p0.yaw)};
+    return Pose2{p0.x + f * (p1.x - p0.x), p0.y + f * (p1.y - p0.y), p0.yaw + f * (p1.yaw - p0.yaw)};
   }
   return odom_history_.back().second;
 }
@@ -138,6 +138,15 @@ Pose2 ControlLoop::OdometryAt(int64_t t_ns) const {
 void ControlLoop::PerceivePair(const hal::Image& left, const hal::Image& right, TickRecord* rec) {
   const int64_t exposure = (left.timestamp_ns + right.timestamp_ns) / 2;
   ++stats_.pairs;
+  // Fused only where the odometry knows the vehicle's pose: a pair placed at a held or default pose
+  // (integrators missing, none yet) would put its tape in the wrong place, and could replace the
+  // model's tail with it.
+  const std::optional<Pose2> at_exposure = OdometryAt(exposure);
+  if (!at_exposure) {
+    ++stats_.pairs_without_pose;
+    spdlog::debug("pair {}/{} not perceived: no odometry pose at its exposure", left.sequence, right.sequence);
+    return;
+  }
   auto result = perception_->Process(left.pixels, right.pixels, exposure);
   if (!result.ok()) {
     ++stats_.perception_errors;
@@ -146,9 +155,8 @@ void ControlLoop::PerceivePair(const hal::Image& left, const hal::Image& right, 
   }
   ++stats_.perceptions;
   stats_.perception_ms.Add(result->stats.total_ms);
-  const Pose2 at_exposure = OdometryAt(exposure);
   const auto update_start = std::chrono::steady_clock::now();
-  auto upd = track_.Update(result->observation, at_exposure);
+  auto upd = track_.Update(result->observation, *at_exposure);
   stats_.track_update_ms.Add(
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - update_start).count());
   if (!upd.ok()) {
@@ -275,7 +283,12 @@ Result<TickRecord> ControlLoop::Step() {
   if (latest_[0] && latest_[1]) {
     const int64_t skew = std::abs(latest_[0]->timestamp_ns - latest_[1]->timestamp_ns);
     if (static_cast<double>(skew) * 1e-9 <= options_.stereo_max_skew_s) {
-      if (running && (latest_[0]->timestamp_ns + latest_[1]->timestamp_ns) / 2 > last_pair_exposure_ns_) {
+      const int64_t exposure = (latest_[0]->timestamp_ns + latest_[1]->timestamp_ns) / 2;
+      if (exposure > t) {
+        // Stamped ahead of the clock (a device clock's glitch): not used, and not let to hold back the
+        // pairs that follow it (they must be newer than the last pair perceived).
+        ++stats_.pairs_from_the_future;
+      } else if (running && exposure > last_pair_exposure_ns_) {
         PerceivePair(*latest_[0], *latest_[1], &rec);
         last_pair_exposure_ns_ = (latest_[0]->timestamp_ns + latest_[1]->timestamp_ns) / 2;
       }

@@ -95,6 +95,9 @@ struct TickRecord {
 struct ControlLoopStats {
   uint64_t ticks = 0, frames = 0, pairs = 0, perceptions = 0, perception_errors = 0;
   uint64_t frozen_frames = 0, unpaired_frames = 0, dropped_frames = 0;
+  // Pairs not perceived: exposed when the odometry gives no pose (none yet, older than its history, or
+  // after its last update by more than max_odometry_age_s), or stamped ahead of the clock.
+  uint64_t pairs_without_pose = 0, pairs_from_the_future = 0;
   uint64_t zero_ticks = 0, drive_ticks = 0;
   std::map<std::string, uint64_t> decisions;  // ticks per decision
   // Per perceived pair, bounded in memory for a service that runs for hours (exact percentiles for
@@ -134,7 +137,9 @@ class ControlLoop {
   RmpDriver* driver() const { return driver_; }
 
  private:
-  Pose2 OdometryAt(int64_t t_ns) const;
+  // The odometry pose at t_ns, interpolated in its history; none when the history does not cover t_ns
+  // (empty, older than its first entry, or later than its last by more than max_odometry_age_s).
+  std::optional<Pose2> OdometryAt(int64_t t_ns) const;
   void PerceivePair(const hal::Image& left, const hal::Image& right, TickRecord* rec);
   Decision Decide(int64_t now_ns, PlanOutput* plan, const Pose2& odom);
 

@@ -185,6 +185,16 @@ TEST(ClosedLoopTest, MissingWheelIntegratorsCommandZeroUntilTheyComeBack) {
     }
   }
   EXPECT_GT(in_window, 20);
+  // Pairs exposed while the odometry had no pose are not fused into the track model (before, they were
+  // placed at the last pose heard, however old).
+  int fused_blind = 0;
+  for (const TickRecord& r : seen.ticks) {
+    const double exposure = static_cast<double>(r.perception_exposure_ns) * 1e-9;
+    if (r.perceived && exposure > 1.5 + 0.1 + 0.011 && exposure < 2.2) ++fused_blind;
+  }
+  EXPECT_EQ(fused_blind, 0);
+  EXPECT_GT(res->stats.pairs_without_pose, 3u);
+  EXPECT_EQ(res->report.ToJson().at("pairs_without_pose").get<uint64_t>(), res->stats.pairs_without_pose);
   EXPECT_TRUE(res->report.completed) << res->report.ToJson().dump();
   ExpectNeverDroveOnStaleData(seen);
 }

@@ -155,6 +155,8 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   r.frozen_frames = st.frozen_frames;
   r.dropped_frames = st.dropped_frames;
   r.unpaired_frames = st.unpaired_frames;
+  r.pairs_without_pose = st.pairs_without_pose;
+  r.pairs_from_the_future = st.pairs_from_the_future;
   r.perception_errors = st.perception_errors;
   r.decisions = st.decisions;
   r.commands = driver->health().counters.frames_sent;

@@ -37,6 +37,8 @@ nlohmann::json RunReport::ToJson() const {
   j["frozen_frames"] = frozen_frames;
   j["dropped_frames"] = dropped_frames;
   j["unpaired_frames"] = unpaired_frames;
+  j["pairs_without_pose"] = pairs_without_pose;
+  j["pairs_from_the_future"] = pairs_from_the_future;
   j["perception_errors"] = perception_errors;
   j["decisions"] = decisions;
   for (const auto& [k, v] : extra.items()) j[k] = v;
@@ -73,6 +75,8 @@ void FillFromLoop(const ControlLoop& loop, RunReport* r) {
   r->frozen_frames = st.frozen_frames;
   r->dropped_frames = st.dropped_frames;
   r->unpaired_frames = st.unpaired_frames;
+  r->pairs_without_pose = st.pairs_without_pose;
+  r->pairs_from_the_future = st.pairs_from_the_future;
   r->perception_errors = st.perception_errors;
   r->decisions = st.decisions;
   const RmpDriverCounters& c = loop.driver()->health().counters;

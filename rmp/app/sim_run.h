@@ -30,6 +30,7 @@ struct RunReport {
   double cruise_speed_mps = 0.0, max_speed_mps = 0.0;
   double frame_to_command_ms_median = 0.0, frame_to_command_ms_p99 = 0.0;
   uint64_t frozen_frames = 0, dropped_frames = 0, unpaired_frames = 0, perception_errors = 0;
+  uint64_t pairs_without_pose = 0, pairs_from_the_future = 0;  // pairs not perceived (ControlLoopStats)
   std::map<std::string, uint64_t> decisions;
   nlohmann::json extra = nlohmann::json::object();  // replay: command comparison; files written
 
