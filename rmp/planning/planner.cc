@@ -93,13 +93,24 @@ Status PlannerOptions::Check() const {
   if (!(corner_leg_min_m >= 0 && corner_leg_min_m < pivot_min_leg_m)) {
     return InvalidArgument("planner: corner_leg_min_m must be in [0, pivot_min_leg_m)");
   }
-  if (!(max_corner_cut_m >= corner_cut_m)) return InvalidArgument("planner: max_corner_cut_m must be >= corner_cut_m");
+  // Upper bounds: the corner search grows the cut by 40 % a step up to this (1e300 took 2000 steps a
+  // corner, every tick).
+  if (!(max_corner_cut_m >= corner_cut_m && max_corner_cut_m <= 1.0)) {
+    return InvalidArgument("planner: max_corner_cut_m must be in [corner_cut_m, 1] m");
+  }
+  if (!(min_corner_turn_deg >= 0 && min_corner_turn_deg < pivot_corner_min_turn_deg)) {
+    return InvalidArgument("planner: min_corner_turn_deg must be in [0, pivot_corner_min_turn_deg)");
+  }
+  if (min_support < 1) return InvalidArgument("planner: min_support must be at least 1");
   if (!positive(simplify_tolerance_m)) return InvalidArgument("planner: simplify_tolerance_m must be positive");
   if (!positive(visibility_check_m) || !(visibility_min_m >= 0)) {
     return InvalidArgument("planner: visibility_check_m must be positive and visibility_min_m >= 0");
   }
-  if (!(command_latency_s >= 0) || !(response_time_constant_s >= 0)) {
-    return InvalidArgument("planner: command_latency_s and response_time_constant_s must be >= 0");
+  // At most 1 s each: the prediction steps through latency + 4 time constants every tick (3600 s, a unit
+  // slip, hung the loop; 50 s predicted so far ahead that every tick was "off track").
+  if (!(command_latency_s >= 0 && command_latency_s <= 1) ||
+      !(response_time_constant_s >= 0 && response_time_constant_s <= 1)) {
+    return InvalidArgument("planner: command_latency_s and response_time_constant_s must be in [0, 1] s");
   }
   if (!positive(control_period_s)) return InvalidArgument("planner: control_period_s must be positive");
   if (!positive(tracking_min_length_m) || !(tracking_time_s >= 0)) {
@@ -224,9 +235,15 @@ bool Planner::BlindCorner(const PlannerInput& input, const Pose2& predicted, con
       if (spans[k].second < proj.s) continue;
       const double turn = turn_at(k);
       if (std::abs(turn) < DegToRad(options_.min_corner_turn_deg)) continue;
-      if (std::abs(turn) >= DegToRad(options_.pivot_corner_min_turn_deg) && !turned_before(verts[k + 1]) &&
-          leg_known_m(verts[k + 1], legs(k).second) >= options_.pivot_min_leg_m) {
-        c = k;
+      if (std::abs(turn) >= DegToRad(options_.pivot_corner_min_turn_deg)) {
+        if (!turned_before(verts[k + 1]) && leg_known_m(verts[k + 1], legs(k).second) >= options_.pivot_min_leg_m) {
+          c = k;
+        } else {
+          // An acute corner not turned on the spot (its next leg not known well enough yet, or the
+          // manoeuvre failed there) ends the known track at its vertex: its arc has radius 0 and no
+          // speed limit, and driving on would reach the vertex at speed and leave the track.
+          *s_stop = std::min(*s_stop, spans[k].first);
+        }
       }
       break;
     }
@@ -474,6 +491,20 @@ PlanOutput Planner::Plan(const PlannerInput& input) {
   }
   double v_pred = 0.0, w_pred = 0.0;
   const Pose2 predicted = PredictPose(input, &v_pred, &w_pred);
+  // Corners turned (or failed) are remembered while the vehicle is near them: a turned one so that the
+  // path continues on its far side, a failed one so that it is not retried. Once the vehicle is more
+  // than kForgetCornerM away (the vertex has left the model ahead, which reaches 0.3 m behind the
+  // vehicle), the same vertex met again - the next lap of a closed track - is a new corner; kept
+  // for ever, it cut the path there and stopped the vehicle off track.
+  constexpr double kForgetCornerM = 1.0;
+  for (auto* list : {&corners_turned_, &corners_failed_}) {
+    list->erase(std::remove_if(list->begin(),
+                               list->end(),
+                               [&](const Vec2d& v) {
+                                 return (v - input.odom_from_vehicle.translation()).norm() > kForgetCornerM;
+                               }),
+                list->end());
+  }
 
   const std::vector<Vec2d> vertices = SimplifyPolyline(input.track.points, options_.simplify_tolerance_m);
   std::vector<bool> corner_in_view;

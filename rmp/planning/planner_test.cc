@@ -184,6 +184,22 @@ TEST(PlannerTest, RejectsBadOptions) {
   o = {};
   o.cruise_speed_mps = 5.0;
   EXPECT_NE(o.Check().message().find("cruise_speed_mps"), std::string::npos);
+  // Values that hung the loop or made every tick "off track" (a latency in ms given as s).
+  o = {};
+  o.command_latency_s = 50;
+  EXPECT_NE(o.Check().message().find("command_latency_s"), std::string::npos);
+  o = {};
+  o.response_time_constant_s = 3600;
+  EXPECT_NE(o.Check().message().find("response_time_constant_s"), std::string::npos);
+  o = {};
+  o.max_corner_cut_m = 1e300;
+  EXPECT_NE(o.Check().message().find("max_corner_cut_m"), std::string::npos);
+  o = {};
+  o.min_corner_turn_deg = NAN;
+  EXPECT_NE(o.Check().message().find("min_corner_turn_deg"), std::string::npos);
+  o = {};
+  o.min_support = 0;
+  EXPECT_NE(o.Check().message().find("min_support"), std::string::npos);
 }
 
 TEST(PlannerClosedLoopTest, FollowsAStraightTapeAndStopsAtItsEnd) {
@@ -316,12 +332,14 @@ struct PivotRun {
 // seen again (negative: never); `stuck`: the wheels slip, the vehicle never turns.
 // `stub_at_yaw_deg`: once the vehicle has turned this far, the model has the blip of AcuteCornerAhead's
 // `stub` (negative: never).
-PivotRun RunAcuteCorner(double seen_at_yaw_deg, bool stuck, Planner* planner, double stub_at_yaw_deg = -1.0) {
+// `t0_ns`: the clock at the start (a later approach with the same planner).
+PivotRun RunAcuteCorner(
+    double seen_at_yaw_deg, bool stuck, Planner* planner, double stub_at_yaw_deg = -1.0, int64_t t0_ns = 0) {
   PivotRun r;
   r.pose = {-0.3, 0.0, 0.0};
   double v = 0.2, w = 0.0;
-  int64_t seen_ns = 0;
-  for (int64_t t = 0; t < 15'000 * kMs; t += 20 * kMs) {
+  int64_t seen_ns = t0_ns;
+  for (int64_t t = t0_ns; t < t0_ns + 15'000 * kMs; t += 20 * kMs) {
     if (seen_at_yaw_deg >= 0 && std::abs(r.pose.yaw) * 180 / kPi >= seen_at_yaw_deg) seen_ns = t;
     PlannerInput in;
     in.now_ns = t;
@@ -423,6 +441,60 @@ TEST(PlannerCornerPivotTest, DoesNotPivotOnANextLegSeenOnlyOnce) {
     EXPECT_NE(out.state, PlanState::kCornerPivot);
     EXPECT_FALSE(planner.corner_turn_active());
   }
+}
+
+// A corner turned once is met again (the next lap of a closed track, the odometry's drift below 0.2 m):
+// once the vehicle has left it behind, it is a new corner, approached and turned again. Before, the
+// turned vertex was remembered for ever: the path was cut there and the vehicle stopped off track.
+TEST(PlannerCornerPivotTest, ACornerMetAgainOnTheNextLapIsTurnedAgain) {
+  Planner planner;
+  const PivotRun first = RunAcuteCorner(60.0, false, &planner);
+  ASSERT_FALSE(Visited(first, PlanState::kNoTrack)) << planner.corner_turn_failure();
+  ASSERT_EQ(first.states.back(), PlanState::kFollow);
+  // Down the next leg, away from the corner.
+  const Vec2d d2(std::cos(-3 * kPi / 4), std::sin(-3 * kPi / 4));
+  PlannerInput away;
+  away.now_ns = first.end_ns + 20 * kMs;
+  away.odom_from_vehicle = {1.2 * d2.x(), 1.2 * d2.y(), -3 * kPi / 4};
+  away.speed_mps = 0.2;
+  away.track = AcuteCornerAhead(0);
+  EXPECT_EQ(planner.Plan(away).state, PlanState::kFollow);
+  // The next lap: the same corner again.
+  const PivotRun again = RunAcuteCorner(60.0, false, &planner, -1.0, away.now_ns + 60'000 * kMs);
+  EXPECT_TRUE(Visited(again, PlanState::kCornerPivot));
+  EXPECT_EQ(again.states.back(), PlanState::kFollow);
+}
+
+// An acute corner that is not turned on the spot (its next leg seen only once) ends the known track at
+// its vertex: the vehicle stops there. Before, the corner's arc had radius 0 and no speed limit, so the
+// vehicle reached the vertex at the uncertain-track speed, and the generic pivot then turned it on the
+// spot without the manoeuvre's checks.
+TEST(PlannerCornerPivotTest, StopsAtAnAcuteCornerItDoesNotTurn) {
+  Planner planner;
+  Pose2 pose{-0.3, 0.0, 0.0};
+  double v = 0.2, w = 0.0;
+  bool pivoted = false;
+  for (int64_t t = 0; t < 6'000 * kMs; t += 20 * kMs) {
+    PlannerInput in;
+    in.now_ns = t;
+    in.odom_from_vehicle = pose;
+    in.speed_mps = v;
+    in.yaw_rate_rps = w;
+    in.track = AcuteCornerAhead(0);
+    in.track.support.assign(in.track.support.size(), 1);
+    const PlanOutput out = planner.Plan(in);
+    planner.CommandSent(t, out.speed_mps, out.yaw_rate_rps);
+    pivoted = pivoted || out.state == PlanState::kPivot || out.state == PlanState::kCornerPivot;
+    v = out.speed_mps;
+    w = out.yaw_rate_rps;
+    pose = IntegrateUnicycle(pose, v, w, 0.02);
+  }
+  EXPECT_FALSE(pivoted);
+  EXPECT_FALSE(planner.corner_turn_active());
+  EXPECT_EQ(v, 0.0);
+  EXPECT_LE(pose.x, 0.01) << "it stopped at the vertex, not beyond";
+  EXPECT_GT(pose.x, -0.1) << "it drove up to the vertex";
+  EXPECT_NEAR(pose.yaw, 0.0, DegToRad(5.0));
 }
 
 }  // namespace
