@@ -56,19 +56,38 @@ Result<DriveLog> ReadDriveLog(const std::string& dir) {
   for (std::size_t i = 0; i < log.recording.events.size(); ++i) {
     const nlohmann::json& e = log.recording.events[i];
     const std::string where = events + ": event " + std::to_string(i + 1);
-    const std::string type = e.value("type", "");
+    std::string type;
+    // A sequence number must be a non-negative integer (-1 read as uint64 was 2^64 - 1).
+    auto seq_of = [&](const nlohmann::json& v) -> Result<uint64_t> {
+      if (!v.is_number_unsigned()) return ParseError(where + ": seq must be a non-negative integer, got " + v.dump());
+      return v.get<uint64_t>();
+    };
     try {
+      type = e.at("type").get<std::string>();
       if (type == "image") {
         DriveFrameRecord f;
         f.camera = e.at("camera").get<std::string>();
-        f.seq = e.at("seq").get<uint64_t>();
+        IDI_ASSIGN_OR_RETURN(f.seq, seq_of(e.at("seq")));
         f.exposure_ns = e.at("t_ns").get<int64_t>();
+        if (!e.contains("file") || !e["file"].is_string())
+          return ParseError(where + ": an image event needs its file name");
         f.event = i;
-        frame_index[{f.camera, f.seq}] = log.frames.size();
+        // A frame recorded twice (a hand-merged or damaged log) would leave its first copy undelivered.
+        const auto [at, inserted] = frame_index.emplace(std::make_pair(f.camera, f.seq), log.frames.size());
+        if (!inserted) {
+          return ParseError(where + ": frame " + f.camera + "/" + std::to_string(f.seq) +
+                            " recorded twice (first at event " + std::to_string(log.frames[at->second].event + 1) +
+                            ")");
+        }
         log.frames.push_back(f);
       } else if (type == "delivered") {
-        const auto it = frame_index.find({e.at("camera").get<std::string>(), e.at("seq").get<uint64_t>()});
+        const std::string camera = e.at("camera").get<std::string>();
+        IDI_ASSIGN_OR_RETURN(const uint64_t seq, seq_of(e.at("seq")));
+        const auto it = frame_index.find({camera, seq});
         if (it == frame_index.end()) return ParseError(where + ": delivery of a frame that was never recorded");
+        if (log.frames[it->second].delivered_ns >= 0) {
+          return ParseError(where + ": frame " + camera + "/" + std::to_string(seq) + " delivered twice");
+        }
         log.frames[it->second].delivered_ns = e.at("t_ns").get<int64_t>();
       } else if (type == "tick") {
         DriveTickRecord t;

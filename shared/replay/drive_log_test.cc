@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <utility>
 
 namespace idi::replay {
 namespace {
@@ -83,6 +84,28 @@ TEST(DriveLogTest, NamesWhatIsWrong) {
   auto l2 = ReadDriveLog(bad);
   ASSERT_FALSE(l2.ok());
   EXPECT_NE(l2.status().message().find("never recorded"), std::string::npos);
+  // A frame recorded twice (its first copy was left undelivered, as if dropped), a frame delivered twice,
+  // a negative sequence number and an image event without its file.
+  const std::pair<const char*, const char*> cases[] = {
+      {R"({"type":"image","t_ns":5,"camera":"left","seq":1,"file":"a.png"})"
+       "\n"
+       R"({"type":"image","t_ns":6,"camera":"left","seq":1,"file":"b.png"})",
+       "frame left/1 recorded twice (first at event 1)"},
+      {R"({"type":"image","t_ns":5,"camera":"left","seq":1,"file":"a.png"})"
+       "\n"
+       R"({"type":"delivered","t_ns":6,"camera":"left","seq":1})"
+       "\n"
+       R"({"type":"delivered","t_ns":7,"camera":"left","seq":1})",
+       "delivered twice"},
+      {R"({"type":"image","t_ns":5,"camera":"left","seq":-1,"file":"a.png"})", "non-negative"},
+      {R"({"type":"image","t_ns":5,"camera":"left","seq":1})", "needs its file name"}};
+  for (const auto& [events, why] : cases) {
+    std::ofstream(fs::path(bad) / "events.jsonl") << events << "\n";
+    const auto l3 = ReadDriveLog(bad);
+    ASSERT_FALSE(l3.ok()) << events;
+    EXPECT_EQ(l3.status().code(), StatusCode::kParseError);
+    EXPECT_NE(l3.status().message().find(why), std::string::npos) << l3.status().message();
+  }
   fs::remove_all(bad);
 }
 

@@ -78,22 +78,13 @@ Status RecordingWriter::Finish(const nlohmann::json& final_meta) {
   return WriteFileAtomically((fs::path(dir_) / "recording.json").string(), HeaderJson(header_).dump(2) + "\n");
 }
 
-Result<Recording> ReadRecording(const std::string& dir) {
-  const std::string header_path = (fs::path(dir) / "recording.json").string();
-  IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(header_path));
-  const nlohmann::json h = nlohmann::json::parse(text, nullptr, false);
-  if (h.is_discarded() || !h.is_object() || h.value("format", "") != "idi-recording") {
-    return ParseError(header_path + ": not an idi recording header");
-  }
-  if (h.value("version", 0) != kRecordingVersion) {
-    return ParseError(header_path + ": recording version " + std::to_string(h.value("version", 0)) +
-                      " (this build reads version " + std::to_string(kRecordingVersion) + ")");
-  }
-  Recording r;
-  r.dir = dir;
-  r.header.kind = h.value("kind", "");
-  r.header.created_unix_ns = h.value("created_unix_ns", int64_t{0});
-  r.header.meta = h.value("meta", nlohmann::json::object());
+namespace {
+
+// The header's fields beyond format and version (throws nlohmann::json::exception on a wrong type).
+Status ReadHeaderFields(const nlohmann::json& h, const std::string& header_path, RecordingHeader* header) {
+  header->kind = h.value("kind", "");
+  header->created_unix_ns = h.value("created_unix_ns", int64_t{0});
+  header->meta = h.value("meta", nlohmann::json::object());
   if (h.contains("cameras")) {
     for (const auto& [name, c] : h["cameras"].items()) {
       CameraModel m;
@@ -103,8 +94,33 @@ Result<Recording> ReadRecording(const std::string& dir) {
       m.width = c.value("width", 0);
       m.height = c.value("height", 0);
       for (int k = 0; k < kCameraParamCount; ++k) m.params[static_cast<std::size_t>(k)] = c["params"][static_cast<std::size_t>(k)].get<double>();
-      r.header.cameras[name] = m;
+      header->cameras[name] = m;
     }
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<Recording> ReadRecording(const std::string& dir) {
+  const std::string header_path = (fs::path(dir) / "recording.json").string();
+  IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(header_path));
+  const nlohmann::json h = nlohmann::json::parse(text, nullptr, false);
+  if (h.is_discarded() || !h.is_object() || !h.contains("format") || h["format"] != "idi-recording") {
+    return ParseError(header_path + ": not an idi recording header");
+  }
+  if (!h.contains("version") || !h["version"].is_number_integer() || h["version"] != kRecordingVersion) {
+    return ParseError(header_path + ": recording version " + (h.contains("version") ? h["version"].dump() : "missing") +
+                      " (this build reads version " + std::to_string(kRecordingVersion) + ")");
+  }
+  Recording r;
+  r.dir = dir;
+  // A field of the wrong type (a version or width written as a string, a null among the params) is a
+  // parse error naming the file, not a JSON exception.
+  try {
+    IDI_RETURN_IF_ERROR(ReadHeaderFields(h, header_path, &r.header));
+  } catch (const nlohmann::json::exception& e) {
+    return ParseError(header_path + ": " + e.what());
   }
   const std::string events_path = (fs::path(dir) / "events.jsonl").string();
   IDI_ASSIGN_OR_RETURN(const std::string events, ReadFile(events_path));
@@ -125,13 +141,19 @@ Result<Recording> ReadRecording(const std::string& dir) {
     if (e.is_discarded() || !e.is_object() || !e.contains("type") || !e.contains("t_ns")) {
       return ParseError(events_path + ":" + std::to_string(line_no) + ": malformed event");
     }
+    if (!e["type"].is_string() || !e["t_ns"].is_number_integer()) {
+      return ParseError(events_path + ":" + std::to_string(line_no) +
+                        ": an event's type must be a string and its t_ns an integer (ns)");
+    }
     r.events.push_back(std::move(e));
   }
   return r;
 }
 
 Result<cv::Mat> LoadRecordedImage(const Recording& recording, const nlohmann::json& e) {
-  if (e.value("type", "") != "image" || !e.contains("file")) return InvalidArgument("not an image event");
+  if (!e.is_object() || !e.contains("type") || e["type"] != "image" || !e.contains("file") || !e["file"].is_string()) {
+    return InvalidArgument("not an image event with a file name");
+  }
   const std::string path = (fs::path(recording.dir) / e["file"].get<std::string>()).string();
   cv::Mat img = cv::imread(path, cv::IMREAD_UNCHANGED);
   if (img.empty()) return IoError(path + ": cannot read the recorded image");

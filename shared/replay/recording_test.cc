@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
 
 namespace idi {
 namespace {
@@ -62,6 +63,31 @@ TEST(RecordingTest, MalformedInputIsNamed) {
   EXPECT_NE(r.status().message().find("events.jsonl:2"), std::string::npos) << r.status().message();
   std::ofstream(dir / "recording.json") << R"({"format": "idi-recording", "version": 7})";
   EXPECT_NE(ReadRecording(dir.string()).status().message().find("version 7"), std::string::npos);
+  // Fields of the wrong type: a parse error naming the file (before: a JSON type_error, uncaught).
+  std::ofstream(dir / "events.jsonl") << "{\"type\":\"note\",\"t_ns\":1}\n";
+  for (const char* header : {R"({"format": "idi-recording", "version": "1"})",
+                             R"({"format": 5, "version": 1})",
+                             R"({"format": "idi-recording", "version": 1, "kind": 3})",
+                             R"({"format": "idi-recording", "version": 1, "cameras": {"left": {"width": "640",
+                                 "params": [1, 1, 0, 0, 0, 0, 0, 0, 0]}}})",
+                             R"({"format": "idi-recording", "version": 1, "cameras": {"left": {"width": 640,
+                                 "params": [1, null, 0, 0, 0, 0, 0, 0, 0]}}})"}) {
+    std::ofstream(dir / "recording.json") << header;
+    const auto h = ReadRecording(dir.string());
+    ASSERT_FALSE(h.ok()) << header;
+    EXPECT_EQ(h.status().code(), StatusCode::kParseError) << header;
+    EXPECT_NE(h.status().message().find("recording.json"), std::string::npos) << h.status().message();
+  }
+  std::ofstream(dir / "recording.json") << R"({"format": "idi-recording", "version": 1})";
+  for (const char* event : {"{\"type\":7,\"t_ns\":0}\n", "{\"type\":\"tick\",\"t_ns\":1.5}\n"}) {
+    std::ofstream(dir / "events.jsonl") << event;
+    const auto e = ReadRecording(dir.string());
+    ASSERT_FALSE(e.ok()) << event;
+    EXPECT_NE(e.status().message().find("events.jsonl:1"), std::string::npos) << e.status().message();
+  }
+  Recording rec;
+  rec.dir = dir.string();
+  EXPECT_FALSE(LoadRecordedImage(rec, nlohmann::json::parse(R"({"type":"image","t_ns":0,"file":5})")).ok());
   fs::remove_all(dir);
 }
 
