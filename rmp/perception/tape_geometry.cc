@@ -34,7 +34,11 @@ Status TapeGeometryOptions::Check() const {
   if (!(min_overlap_m >= 0)) return InvalidArgument("perception: min_overlap_m must be >= 0");
   if (!positive(join_distance_m)) return InvalidArgument("perception: join_distance_m must be positive");
   if (!(max_turn_deg > 0 && max_turn_deg < 180)) return InvalidArgument("perception: max_turn_deg must be in (0, 180)");
-  if (!(collinear_deg >= 0)) return InvalidArgument("perception: collinear_deg must be >= 0");
+  // Positive: at 0, exactly collinear strips went to the corner construction, whose intersection of two
+  // parallel lines is 0/0 (a NaN vertex, and the piece dropped).
+  if (!(collinear_deg > 0 && collinear_deg < max_turn_deg)) {
+    return InvalidArgument("perception: collinear_deg must be in (0, max_turn_deg)");
+  }
   if (!(min_piece_length_m >= 0)) return InvalidArgument("perception: min_piece_length_m must be >= 0");
   return Status::Ok();
 }

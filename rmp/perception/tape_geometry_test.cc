@@ -103,6 +103,10 @@ TEST(TapeGeometryTest, ChecksOptions) {
   EXPECT_TRUE(o.Check().ok());
   o.tape_width_m = -1;
   EXPECT_FALSE(o.Check().ok());
+  // 0 sent exactly collinear strips to the corner construction: 0/0, a NaN vertex, the piece dropped.
+  o = {};
+  o.collinear_deg = 0;
+  EXPECT_NE(o.Check().message().find("collinear_deg"), std::string::npos);
 }
 
 // Narrow tape keeps a tolerance below its width (the default 20 mm would refuse 19 mm tape); wide tape

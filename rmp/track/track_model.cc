@@ -116,9 +116,12 @@ Status TrackModelOptions::Check() const {
   if (!(max_gap_angle_deg > 0 && max_gap_angle_deg < 90)) return InvalidArgument("track: max_gap_angle_deg must be in (0, 90)");
   if (!positive(end_confirm_m)) return InvalidArgument("track: end_confirm_m must be positive");
   if (!positive(start_search_m)) return InvalidArgument("track: start_search_m must be positive");
-  if (!(keep_behind_m >= 0)) return InvalidArgument("track: keep_behind_m must be >= 0");
+  if (!(keep_behind_m >= 0 && std::isfinite(keep_behind_m)))
+    return InvalidArgument("track: keep_behind_m must be >= 0");
   if (max_support < 1) return InvalidArgument("track: max_support must be >= 1");
-  if (!(footprint_margin_m >= 0)) return InvalidArgument("track: footprint_margin_m must be >= 0");
+  if (!(footprint_margin_m >= 0 && std::isfinite(footprint_margin_m))) {
+    return InvalidArgument("track: footprint_margin_m must be >= 0");
+  }
   if (!(evidence_span_m >= 0 && std::isfinite(evidence_span_m))) return InvalidArgument("track: evidence_span_m must be >= 0");
   return Status::Ok();
 }
@@ -200,9 +203,23 @@ void TrackModel::Initialise(const std::vector<Vec2d>& piece, int64_t seen_ns) {
 
 Result<TrackUpdateStats> TrackModel::Update(const TrackObservation& observation, const Pose2& odom_from_vehicle) {
   if (!odom_from_vehicle.IsFinite()) return InvalidArgument("track update: non-finite odometry pose");
+  // Observations are in the vehicle's frame: a point farther than kMaxObservedRangeM is no camera's view
+  // of the ground (a bad triangulation); densified, a point 1e5 m away made ten million samples.
+  constexpr double kMaxObservedRangeM = 100.0;
   for (std::size_t i = 0; i < observation.pieces.size(); ++i) {
     for (const Vec2d& p : observation.pieces[i].points_m) {
       if (!FinitePoint(p)) return InvalidArgument("track update: piece " + std::to_string(i) + " has a non-finite point");
+      if (p.norm() > kMaxObservedRangeM) {
+        return InvalidArgument("track update: piece " + std::to_string(i) + " has a point " + std::to_string(p.norm()) +
+                               " m from the vehicle (more than 100 m)");
+      }
+    }
+  }
+  for (std::size_t i = 0; i < observation.footprints_m.size(); ++i) {
+    for (const Vec2d& p : observation.footprints_m[i]) {
+      // A NaN vertex opened the polygon: ground outside the view counted as seen without tape.
+      if (!FinitePoint(p))
+        return InvalidArgument("track update: footprint " + std::to_string(i) + " has a non-finite vertex");
     }
   }
   TrackUpdateStats stats;

@@ -33,7 +33,21 @@ TEST(TrackModelTest, RejectsNonFiniteInput) {
   obs.pieces.push_back({{{0, 0}, {std::nan(""), 1}}, {false, false}, 0.005});
   EXPECT_FALSE(model.Update(obs, Pose2{}).ok());
   EXPECT_FALSE(model.Update(TrackObservation{}, Pose2{0, std::nan(""), 0}).ok());
+  // A point no camera sees (a bad triangulation 10 km away: densified, it was a million samples) and a
+  // footprint with a NaN vertex (an open polygon).
+  TrackObservation far;
+  far.pieces.push_back({{{0.5, 0}, {1e4, 0}}, {false, false}, 0.005});
+  const Status f = model.Update(far, Pose2{}).status();
+  EXPECT_EQ(f.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(f.message().find("more than 100 m"), std::string::npos) << f.message();
+  TrackObservation open;
+  open.pieces.push_back({{{0.5, 0}, {1.0, 0}}, {false, false}, 0.005});
+  open.footprints_m.push_back({{0.3, -1}, {3, -1}, {3, std::nan("")}, {0.3, 1}});
+  EXPECT_NE(model.Update(open, Pose2{}).status().message().find("non-finite vertex"), std::string::npos);
   EXPECT_FALSE(model.initialised());
+  TrackModelOptions o;
+  o.keep_behind_m = INFINITY;  // never pruned: the model grew for the whole drive
+  EXPECT_FALSE(o.Check().ok());
 }
 
 // Drives the vehicle along the true track (straight, heading +x) in 2 cm steps, observing every step.

@@ -20,6 +20,8 @@ Rigid3d LookAheadCameraPose(double x_m, double y_m, double height_m, double yaw_
 std::vector<Vec2d> GroundFootprint(const RigCamera& camera, double step_px, double max_range_m) {
   const CameraModel& k = camera.intrinsics;
   std::vector<Vec2d> border;
+  // A step that is not positive never walked the border (an endless loop that filled memory).
+  if (!(step_px >= 1.0 && std::isfinite(step_px)) || !(max_range_m > 0 && std::isfinite(max_range_m))) return {};
   const double w = k.width - 0.5, h = k.height - 0.5;
   for (double x = -0.5; x < w; x += step_px) border.emplace_back(x, -0.5);
   for (double y = -0.5; y < h; y += step_px) border.emplace_back(w, y);

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "shared/util/units.h"
 
 namespace idi::rmp {
@@ -26,6 +28,17 @@ TEST(CameraRigTest, OpticalAxisHitsTheGroundWhereTrigonometrySays) {
   // Closer points appear lower in the image (larger y).
   EXPECT_GT(GroundPointToPixel(c, Vec2d(1.0, 0.0))->y(), 239.5);
   EXPECT_FALSE(GroundPointToPixel(c, Vec2d(-1.0, 0.0)).has_value());
+}
+
+// A step that is not positive walked the border for ever (filling memory); no footprint instead.
+TEST(CameraRigTest, FootprintOfABadStepOrRangeIsEmpty) {
+  const RigCamera c = Camera(45);
+  EXPECT_TRUE(GroundFootprint(c, 0.0).empty());
+  EXPECT_TRUE(GroundFootprint(c, -16.0).empty());
+  EXPECT_TRUE(GroundFootprint(c, std::nan("")).empty());
+  EXPECT_TRUE(GroundFootprint(c, 16.0, 0.0).empty());
+  EXPECT_TRUE(GroundFootprint(c, 16.0, std::nan("")).empty());
+  EXPECT_FALSE(GroundFootprint(c, 16.0, 4.0).empty());
 }
 
 TEST(CameraRigTest, FootprintIsAheadOfTheVehicleAndBounded) {
