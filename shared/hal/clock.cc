@@ -1,5 +1,6 @@
 #include "shared/hal/clock.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -29,7 +30,9 @@ std::atomic<double> g_default_pace{0.0};
 void SimClock::SleepUntilNs(int64_t t_ns) {
   if (t_ns <= now_ns_) return;
   if (pace_ > 0) {
-    std::this_thread::sleep_for(std::chrono::nanoseconds(static_cast<int64_t>(pace_ * static_cast<double>(t_ns - now_ns_))));
+    // Capped at a day of wall time (the product of a pace and a huge interval overflowed the cast).
+    const double wall_ns = std::min(pace_ * static_cast<double>(t_ns - now_ns_), 86400e9);
+    std::this_thread::sleep_for(std::chrono::nanoseconds(static_cast<int64_t>(wall_ns)));
   }
   now_ns_ = t_ns;
 }

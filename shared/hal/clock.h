@@ -13,7 +13,11 @@ class Clock {
   virtual int64_t NowNs() const = 0;
   // Blocks (real) or advances simulated time (sim) until `t_ns`; returns immediately if past.
   virtual void SleepUntilNs(int64_t t_ns) = 0;
-  void SleepForNs(int64_t dt_ns) { SleepUntilNs(NowNs() + dt_ns); }
+  // Saturating: a huge dt is "until the end of time", not an overflow into the past.
+  void SleepForNs(int64_t dt_ns) {
+    const int64_t now = NowNs();
+    SleepUntilNs(dt_ns > 0 && now > INT64_MAX - dt_ns ? INT64_MAX : now + dt_ns);
+  }
 };
 
 // CLOCK_MONOTONIC.
@@ -46,6 +50,14 @@ class SimClock final : public Clock {
 inline constexpr int64_t kNsPerMs = 1'000'000;
 inline constexpr int64_t kNsPerSec = 1'000'000'000;
 inline double NsToSec(int64_t ns) { return static_cast<double>(ns) * 1e-9; }
-inline int64_t SecToNs(double s) { return static_cast<int64_t>(s * 1e9); }
+// Saturates at the int64 range, and NaN is 0 (the cast of either was undefined behaviour; on x86 it gave
+// INT64_MIN, so a NaN sleep became no wait).
+inline int64_t SecToNs(double s) {
+  const double ns = s * 1e9;
+  if (!(ns == ns)) return 0;
+  if (ns >= 9.2e18) return INT64_MAX;
+  if (ns <= -9.2e18) return INT64_MIN;
+  return static_cast<int64_t>(ns);
+}
 
 }  // namespace idi::hal

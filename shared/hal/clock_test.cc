@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
+#include <cstdint>
 
 namespace idi::hal {
 namespace {
@@ -29,6 +31,21 @@ TEST(SimClockTest, SleepAdvancesAndPaceWaitsOnTheWallClock) {
   EXPECT_GE(waited, std::chrono::milliseconds(60));
   paced.set_pace(-1);
   EXPECT_EQ(paced.pace(), 0.0) << "a negative pace means unpaced";
+}
+
+// Seconds that do not fit in int64 ns saturate and NaN is 0 (the casts were undefined; on x86 a NaN
+// sleep became INT64_MIN, no wait); a sleep for INT64_MAX ns ends at the end of time, not in the past.
+TEST(SimClockTest, ConversionsAndSleepsSaturate) {
+  EXPECT_EQ(SecToNs(1.5), 1'500'000'000);
+  EXPECT_EQ(SecToNs(-0.25), -250'000'000);
+  EXPECT_EQ(SecToNs(std::nan("")), 0);
+  EXPECT_EQ(SecToNs(INFINITY), INT64_MAX);
+  EXPECT_EQ(SecToNs(1e12), INT64_MAX);
+  EXPECT_EQ(SecToNs(-1e12), INT64_MIN);
+  SimClock clock(5 * kNsPerSec);
+  clock.set_pace(0.0);
+  clock.SleepForNs(INT64_MAX);
+  EXPECT_EQ(clock.NowNs(), INT64_MAX);
 }
 
 }  // namespace

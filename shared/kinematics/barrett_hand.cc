@@ -33,6 +33,9 @@ std::array<Vec3d, 3> BarrettFingerPoints(const BarrettHandParams& hand, int fing
 
 bool BarrettTipOnFace(const BarrettHandParams& hand, int finger, double spread, double face_distance_mm,
                       double* reading_rad, double* depth_mm) {
+  if (!hand.Valid() || finger < 0 || finger > 2 || !std::isfinite(spread) || !std::isfinite(face_distance_mm)) {
+    return false;
+  }
   const BarrettFingerFrame g = BarrettFingerAt(hand, finger, spread);
   // Outward coordinate of the fingertip's pad surface minus the face's: positive while the finger is out.
   auto gap = [&](double r) {

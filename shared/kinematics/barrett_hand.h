@@ -13,6 +13,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 
 #include "shared/geometry/rigid3.h"
 
@@ -27,9 +28,21 @@ struct BarrettHandParams {
   double distal_ratio = 1.0 / 3.0;
   double pad_radius_mm = 9;      // half the fingertip's thickness
   double closed_deg = 140;       // range of the finger reading
+  // Finite and positive lengths, a finger range in (0, 360] deg (an infinite one made the tip search
+  // run for ever), finite angles.
   bool Valid() const {
+    for (double v : {knuckle_radius_mm,
+                     proximal_mm,
+                     distal_mm,
+                     open_angle_deg,
+                     distal_bend_deg,
+                     distal_ratio,
+                     pad_radius_mm,
+                     closed_deg}) {
+      if (!std::isfinite(v)) return false;
+    }
     return knuckle_radius_mm > 0 && proximal_mm > 0 && distal_mm > 0 && pad_radius_mm > 0 && closed_deg > 0 &&
-           distal_ratio >= 0;
+           closed_deg <= 360 && distal_ratio >= 0;
   }
 };
 

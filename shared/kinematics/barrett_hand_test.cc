@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "shared/util/units.h"
 
 namespace idi {
@@ -48,6 +50,13 @@ TEST(BarrettHandTest, FingertipReachesAFace) {
   // Beyond the widest opening, or on the far side of the palm centre, the fingertip cannot get there.
   EXPECT_FALSE(BarrettTipOnFace(hand, 2, 0, 100.0, &reading, &depth));
   EXPECT_FALSE(BarrettTipOnFace(hand, 2, 0, -200.0, &reading, &depth));
+  // Parameters that are not a hand: an infinite finger range searched for ever, a finger index beyond
+  // the thumb was taken for finger 2.
+  BarrettHandParams endless;
+  endless.closed_deg = INFINITY;
+  EXPECT_FALSE(BarrettTipOnFace(endless, 2, 0, 1e6, &reading, &depth));
+  EXPECT_FALSE(BarrettTipOnFace(hand, 3, 0, 40.0, &reading, &depth));
+  EXPECT_FALSE(BarrettTipOnFace(hand, 2, std::nan(""), 40.0, &reading, &depth));
 }
 
 }  // namespace
