@@ -65,6 +65,7 @@ Result<RunReport> RunHardware(const HardwareRunOptions& o) {
   if (!o.record_dir.empty()) {
     RecordingHeader header;
     header.created_unix_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+    header.created_clock_ns = clock.NowNs();  // the events' clock (CLOCK_MONOTONIC, from boot)
     header.cameras["left"] = config.rig.left.intrinsics;
     header.cameras["right"] = config.rig.right.intrinsics;
     header.meta = {{"source", "hardware"}, {"config_yaml", o.config_text}, {"cruise_speed_mps", config.planner.cruise_speed_mps}};

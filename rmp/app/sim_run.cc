@@ -104,6 +104,7 @@ Result<SimRunResult> RunSimulation(const SimRunOptions& o) {
   if (!o.record_dir.empty()) {
     RecordingHeader header;
     header.created_unix_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+    header.created_clock_ns = world->clock()->NowNs();
     header.cameras["left"] = config.rig.left.intrinsics;
     header.cameras["right"] = config.rig.right.intrinsics;
     header.meta = {{"source", "sim"},

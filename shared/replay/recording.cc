@@ -17,6 +17,7 @@ nlohmann::json HeaderJson(const RecordingHeader& h) {
   j["version"] = kRecordingVersion;
   j["kind"] = h.kind;
   j["created_unix_ns"] = h.created_unix_ns;
+  j["created_clock_ns"] = h.created_clock_ns;
   j["cameras"] = nlohmann::json::object();
   for (const auto& [name, c] : h.cameras) {
     j["cameras"][name] = {{"width", c.width}, {"height", c.height}, {"params", c.params}};
@@ -84,6 +85,7 @@ namespace {
 Status ReadHeaderFields(const nlohmann::json& h, const std::string& header_path, RecordingHeader* header) {
   header->kind = h.value("kind", "");
   header->created_unix_ns = h.value("created_unix_ns", int64_t{0});
+  header->created_clock_ns = h.value("created_clock_ns", int64_t{0});
   header->meta = h.value("meta", nlohmann::json::object());
   if (h.contains("cameras")) {
     for (const auto& [name, c] : h["cameras"].items()) {

@@ -1,10 +1,12 @@
 // The recording format: what a run saw and did, replayable on a desktop. One folder per run:
 //
 //   <run>/recording.json   {"format": "idi-recording", "version": 1, "kind": "...", "created_unix_ns": ...,
+//                           "created_clock_ns": ... (the run's clock then; see UnixTimeOf),
 //                           "cameras": {"left": {"width", "height", "params": [fx, fy, cx, cy, k1, k2, p1, p2, k3]}},
 //                           "meta": {...}}
-//   <run>/events.jsonl     one JSON object per line, in time order; every event has "t_ns" (the run's
-//                          clock, sample time) and "type":
+//   <run>/events.jsonl     one JSON object per line, in the order written (an image, written when it is
+//                          delivered, may follow events of later t_ns); every event has "t_ns" (the
+//                          run's clock, sample time) and "type":
 //                            image   {"camera", "seq", "file": "images/000042_left.png"}
 //                            joints  {"arm", "q_deg": [6]}           encoder readings, model convention
 //                            rail    {"arm", "position_mm"}
@@ -37,9 +39,18 @@ inline constexpr int kRecordingVersion = 1;
 struct RecordingHeader {
   std::string kind;  // "scan", "calibrate-robot", "calibrate-rail", "calibrate-ptu", "pick", "rmp-drive", ...
   int64_t created_unix_ns = 0;
+  // The run's clock (the clock of the events' t_ns: CLOCK_MONOTONIC on hardware, the twin's clock in a
+  // simulation) when created_unix_ns was taken; 0 in recordings written before it was stored.
+  int64_t created_clock_ns = 0;
   std::map<std::string, CameraModel> cameras;
   nlohmann::json meta = nlohmann::json::object();
 };
+
+// The wall-clock (Unix) time of an event's t_ns: the events' clock is not the wall clock (on the vehicle
+// it counts from boot), so t_ns is taken relative to the clock's reading at creation.
+inline int64_t UnixTimeOf(const RecordingHeader& header, int64_t t_ns) {
+  return header.created_unix_ns + (t_ns - header.created_clock_ns);
+}
 
 class RecordingWriter {
  public:

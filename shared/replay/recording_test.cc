@@ -15,7 +15,9 @@ TEST(RecordingTest, RoundTripWithImagesAndATornLastLine) {
   fs::remove_all(dir);
   RecordingHeader h;
   h.kind = "scan";
-  h.created_unix_ns = 123;
+  // Created on a vehicle up for an hour: its events' clock (from boot) read 3600 s.
+  h.created_unix_ns = 1'700'000'000'000'000'000;
+  h.created_clock_ns = 3'600'000'000'000;
   CameraModel cam;
   cam.params[kK1] = -0.1;
   h.cameras["left"] = cam;
@@ -38,6 +40,10 @@ TEST(RecordingTest, RoundTripWithImagesAndATornLastLine) {
   const auto r = ReadRecording(dir.string());
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_EQ(r->header.kind, "scan");
+  // An event 2 s after creation is 2 s after the wall-clock time of creation (before, the export added
+  // the clock's whole reading, an hour here, to the creation time).
+  EXPECT_EQ(r->header.created_clock_ns, h.created_clock_ns);
+  EXPECT_EQ(UnixTimeOf(r->header, h.created_clock_ns + 2'000'000'000), h.created_unix_ns + 2'000'000'000);
   EXPECT_EQ(r->header.meta["points"], 8);
   EXPECT_DOUBLE_EQ(r->header.cameras.at("left").params[kK1], -0.1);
   ASSERT_EQ(r->events.size(), 2u);

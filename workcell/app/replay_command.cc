@@ -99,7 +99,7 @@ Status RunExport(const ExportOptions& o) {
     if (e.value("type", "") != "image") continue;
     RawlogFrame f;
     f.sensor_label = e.value("camera", "camera");
-    f.timestamp_unix_ns = rec.header.created_unix_ns + e.value("t_ns", int64_t{0});
+    f.timestamp_unix_ns = UnixTimeOf(rec.header, e.value("t_ns", int64_t{0}));
     IDI_ASSIGN_OR_RETURN(f.image, LoadRecordedImage(rec, e));
     const auto cam = rec.header.cameras.find(f.sensor_label);
     if (cam != rec.header.cameras.end()) f.camera = cam->second;
