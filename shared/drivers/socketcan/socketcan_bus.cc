@@ -13,12 +13,25 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 
 namespace idi::drivers {
 namespace {
 
 std::string ErrnoName(int err) { return std::string(std::strerror(err)) + " (errno " + std::to_string(err) + ")"; }
+
+// Timeouts run on the steady clock, whatever clock stamps the frames (a simulated one that does not
+// advance would make them endless), and are capped at a day (a "forever" of milliseconds::max()
+// overflowed the conversion to ns).
+int64_t SteadyNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+int64_t DeadlineNs(std::chrono::milliseconds timeout) {
+  constexpr int64_t kDayMs = 86'400'000;
+  return SteadyNs() + std::clamp<int64_t>(timeout.count(), 0, kDayMs) * hal::kNsPerMs;
+}
 
 bool InterfaceDownErrno(int err) { return err == ENETDOWN || err == ENODEV || err == ENXIO; }
 
@@ -84,6 +97,7 @@ void SocketCanBus::CloseSocket() {
 }
 
 Status SocketCanBus::OpenSocket() {
+  kernel_drops_ = 0;  // a new socket's overflow counter starts at 0
   CloseSocket();
   const std::string& ifname = options_.interface;
   const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC | SOCK_NONBLOCK, CAN_RAW);
@@ -169,7 +183,7 @@ Status SocketCanBus::Send(const hal::CanFrame& frame) {
     ++counters_.dropped;
     return DeviceError("SocketCAN " + options_.interface + ": controller is bus-off; frame not sent");
   }
-  const int64_t deadline = clock_->NowNs() + static_cast<int64_t>(options_.send_timeout.count()) * hal::kNsPerMs;
+  const int64_t deadline = DeadlineNs(options_.send_timeout);
   while (true) {
     const ssize_t n = ::write(fd_, &out, sizeof(out));
     if (n == static_cast<ssize_t>(sizeof(out))) {
@@ -187,7 +201,7 @@ Status SocketCanBus::Send(const hal::CanFrame& frame) {
       return IoError("SocketCAN " + options_.interface + ": write failed: " + ErrnoName(err));
     }
     // TX queue full (the bus is busy or nobody acknowledges): wait for room until the deadline.
-    const int64_t left_ns = deadline - clock_->NowNs();
+    const int64_t left_ns = deadline - SteadyNs();
     if (left_ns <= 0) {
       ++counters_.dropped;
       return Timeout("SocketCAN " + options_.interface + ": TX queue full for " +
@@ -207,7 +221,7 @@ void SocketCanBus::TrackError(const hal::CanFrame& frame) {
 
 Result<std::optional<hal::CanFrame>> SocketCanBus::Receive(std::chrono::milliseconds timeout) {
   IDI_RETURN_IF_ERROR(MaybeReopen());
-  const int64_t deadline = clock_->NowNs() + std::max<int64_t>(0, static_cast<int64_t>(timeout.count())) * hal::kNsPerMs;
+  const int64_t deadline = DeadlineNs(timeout);
   while (true) {
     can_frame in;
     char control[CMSG_SPACE(sizeof(uint32_t))];
@@ -248,7 +262,7 @@ Result<std::optional<hal::CanFrame>> SocketCanBus::Receive(std::chrono::millisec
     if (err != EAGAIN && err != EWOULDBLOCK) {
       return IoError("SocketCAN " + options_.interface + ": read failed: " + ErrnoName(err));
     }
-    const int64_t left_ns = deadline - clock_->NowNs();
+    const int64_t left_ns = deadline - SteadyNs();
     if (left_ns <= 0) return std::optional<hal::CanFrame>();
     pollfd p{fd_, POLLIN, 0};
     const int rc = ::poll(&p, 1, static_cast<int>((left_ns + hal::kNsPerMs - 1) / hal::kNsPerMs));

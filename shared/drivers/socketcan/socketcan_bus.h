@@ -44,7 +44,8 @@ class SocketCanBus final : public hal::CanBus {
  public:
   // Opens and binds the socket. NotFound when the interface does not exist; IoError naming the
   // missing kernel support when the kernel has no SocketCAN (modules can, can-raw).
-  // `clock` (not owned; nullptr = CLOCK_MONOTONIC) stamps received frames.
+  // `clock` (not owned; nullptr = CLOCK_MONOTONIC) stamps received frames; timeouts always run on the
+  // steady clock.
   static Result<std::unique_ptr<SocketCanBus>> Open(const SocketCanOptions& options, hal::Clock* clock = nullptr);
   ~SocketCanBus() override;
   SocketCanBus(const SocketCanBus&) = delete;
