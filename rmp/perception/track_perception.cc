@@ -165,9 +165,15 @@ Result<PerceptionResult> TrackPerception::Process(const cv::Mat& left, const cv:
   // 1. Features of each image, each with its own detector: the right image on a second thread when
   // parallel_views is set (the results do not depend on it).
   Result<FeatureResult> detected[2] = {FeatureResult{}, FeatureResult{}};
+  // An exception (out of memory, OpenCV) becomes this pair's error: escaping the second thread, or
+  // unwinding past it unjoined, would end the process without the driver's last zero command.
   auto detect = [&](int v) {
     const auto t0 = Clock::now();
-    detected[v] = detectors_[static_cast<std::size_t>(v)]->Detect(views[v].gray);
+    try {
+      detected[v] = detectors_[static_cast<std::size_t>(v)]->Detect(views[v].gray);
+    } catch (const std::exception& e) {
+      detected[v] = Internal(std::string("feature detection threw: ") + e.what());
+    }
     st.features_ms[static_cast<std::size_t>(v)] = MsSince(t0);
   };
   if (options_.parallel_views) {

@@ -14,7 +14,9 @@
 //    predicting the pose the vehicle will have when a command takes effect, from the commands still in
 //    flight; at that pose a path-following law (curvature feed-forward with preview, plus lateral and
 //    heading feedback critically damped over a distance) gives the yaw rate.
-// 4. Limits: speed, acceleration, yaw rate and yaw acceleration as configured; never reversing.
+// 4. Limits: speed, acceleration, yaw rate and yaw acceleration as configured, never reversing; the
+//    speed profile brakes at max_decel_mps2, and the command may brake at up to twice that when a stop
+//    point appears closer than the profile allows (a margin the RMP's own limits then bound).
 // 5. Blind acute corners. A corner turning by more than `pivot_corner_min_turn_deg` (an acute corner:
 //    the next leg runs back at less than 90 deg to the one driven) cannot be driven as a curve that
 //    keeps the track perceived: near the vertex the next leg lies beside or behind the vehicle,
@@ -40,7 +42,9 @@
 //       ordinary track-lost rule holds the vehicle until the track is seen again. Only while the
 //       manoeuvre is committed and within these bounds may the control loop accept an association
 //       older than its track-lost limit (corner_turn_active()); perception must stay fresh
-//       throughout, and the pivot itself never moves the axle midpoint (speed 0).
+//       throughout, and the pivot commands speed 0 (it begins within 3 cm of the vertex at under
+//       0.05 m/s, or within 5 mm at whatever speed the approach's braking left, which the braking limit
+//       then takes to 0 over a few ticks).
 //    e. it is only attempted when the next leg is known for `pivot_min_leg_m` beyond the vertex from
 //       repeated sightings (support >= min_support), so a spurious corner seen once is not turned.
 //    In the twin (rmp/app/track_spec, the default rig) the far part of the next leg of the 120 and 135

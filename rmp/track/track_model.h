@@ -93,7 +93,7 @@ class TrackModel {
   bool initialised() const { return !samples_.empty(); }
   bool end_known() const { return end_known_; }
   // Arc length of the vehicle's progress point from the model's first sample (the model's start moves
-  // as samples behind the vehicle are pruned; distance_travelled_m() does not).
+  // as samples behind the vehicle are pruned; distance_along_m() does not).
   double progress_index_s() const;
   double distance_along_m() const { return distance_along_m_; }
   int64_t last_associated_ns() const { return last_associated_ns_; }

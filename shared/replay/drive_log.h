@@ -1,8 +1,10 @@
 // The vehicle's drive log: the recording format (recording.h, kind "rmp-drive") with the event
 // vocabulary idi-rmp writes while it drives and reads back in `idi-rmp replay DIR`:
 //
-//   recording.json  header: the camera models ("left", "right") and meta: {"rig": ..., "config": ...,
-//                   "start_ns": the loop's first tick} (whatever the binary needs to rebuild its pipeline)
+//   recording.json  header: the camera models ("left", "right") and meta: {"source": "sim" or
+//                   "hardware", "config_yaml", "cruise_speed_mps", and from the twin "track",
+//                   "tape_width_m", "rig"; at the end also "report"} (what replay needs to rebuild the
+//                   pipeline)
 //   events.jsonl    image     {"camera", "seq", "file"}                 t_ns = exposure time
 //                   delivered {"camera", "seq"}                          t_ns = when the loop received it
 //                   tick      {"left_seq", "right_seq", "speed_mps", "yaw_rate_rps", "decision", "state"}
@@ -69,7 +71,7 @@ class DriveLogWriter {
 
 struct DriveLog {
   Recording recording;
-  std::vector<DriveFrameRecord> frames;  // in exposure order per camera
+  std::vector<DriveFrameRecord> frames;  // in the order their image events were written
   std::vector<DriveTickRecord> ticks;
   std::vector<CandumpRecord> can;
 };

@@ -1,4 +1,4 @@
-// Export of recorded images (and a text note per run) to MRPT's rawlog format, so MRPT's RawLogViewer
+// Export of recorded images to MRPT's rawlog format, so MRPT's RawLogViewer
 // and rawlog-edit (Debian package mrpt-apps) can open what the workcell or the vehicle recorded.
 // The rawlog is a plain observation stream (no actions): one CObservationImage per frame, labelled
 // with its camera's name and stamped with its capture time; images are embedded.
