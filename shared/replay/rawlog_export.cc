@@ -3,8 +3,10 @@
 #include <mrpt/obs/CObservationImage.h>
 #include <mrpt/obs/CRawlog.h>
 #include <mrpt/system/datetime.h>
+#include <unistd.h>
 
 #include <filesystem>
+#include <string>
 
 namespace idi {
 
@@ -18,7 +20,8 @@ Status ExportRawlog(const std::vector<RawlogFrame>& frames, const std::string& p
     auto obs = mrpt::obs::CObservationImage::Create();
     obs->sensorLabel = f.sensor_label;
     obs->timestamp = mrpt::Clock::fromDouble(static_cast<double>(f.timestamp_unix_ns) * 1e-9);
-    obs->image = mrpt::img::CImage(f.image, mrpt::img::DEEP_COPY);
+    // Shares the frame's pixels (the frames outlive the log): a long drive is not held twice in memory.
+    obs->image = mrpt::img::CImage(f.image, mrpt::img::SHALLOW_COPY);
     if (f.camera) {
       const CameraModel& c = *f.camera;
       obs->cameraParams.ncols = static_cast<uint32_t>(c.width);
@@ -35,13 +38,22 @@ Status ExportRawlog(const std::vector<RawlogFrame>& frames, const std::string& p
     }
     log.insert(obs);
   }
+  // Written beside the target and renamed over it: a failed or interrupted export leaves an earlier
+  // file at `path` as it was.
+  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
   bool ok = false;
+  std::string why;
   try {
-    ok = log.saveToRawLogFile(path);
+    ok = log.saveToRawLogFile(tmp);
   } catch (const std::exception& e) {
-    return IoError(path + ": cannot write the rawlog: " + e.what());
+    why = std::string(": ") + e.what();
   }
-  if (!ok) return IoError(path + ": cannot write the rawlog");
+  std::error_code ec;
+  if (ok) std::filesystem::rename(tmp, path, ec);
+  if (!ok || ec) {
+    std::filesystem::remove(tmp, ec);
+    return IoError(path + ": cannot write the rawlog" + why);
+  }
   return Status::Ok();
 }
 

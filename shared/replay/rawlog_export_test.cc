@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <opencv2/core.hpp>
 
 #include "shared/drivers/mrpt/mrpt_camera.h"
@@ -43,6 +45,16 @@ TEST(RawlogExportTest, WritesImagesMrptReadsBack) {
     EXPECT_NEAR(static_cast<double>((*back)[k].timestamp_unix_ns), static_cast<double>(frames[k].timestamp_unix_ns), 2e3);
     EXPECT_EQ(cv::norm((*back)[k].image, frames[k].image, cv::NORM_INF), 0.0);
   }
+  // Written beside the target and renamed: nothing else is left in the folder.
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);
+  // A target that cannot be replaced (a folder in its place): an error, the folder as it was, no
+  // temporary file left.
+  fs::create_directories(dir / "taken.rawlog");
+  std::ofstream(dir / "taken.rawlog" / "keep") << "x";
+  const Status taken = ExportRawlog(frames, (dir / "taken.rawlog").string());
+  EXPECT_EQ(taken.code(), StatusCode::kIoError);
+  EXPECT_TRUE(fs::exists(dir / "taken.rawlog" / "keep"));
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 2);
   // The same file through MRPT's camera sensor (grabber "rawlog"): what a replayed FireWire camera gives.
   hal::SimClock clock;
   drivers::MrptCamera cam({"right", "rawlog", {{"rawlog_file", path}, {"rawlog_camera_sensor_label", "right"}}}, &clock);
