@@ -201,10 +201,25 @@ bool Planner::BlindCorner(const PlannerInput& input, const Pose2& predicted, con
     }
     return false;
   };
+  // The track's points after the vertex in travel order (from the point nearest it): on a very sharp
+  // corner the incoming leg also lies within the next leg's band near the vertex (at 160 deg, points of
+  // leg 1 10-15 cm back passed for leg 2), so only later points are evidence of the next leg.
+  auto after_vertex = [&](const Vec2d& vertex) {
+    std::size_t best = 0;
+    double best_d = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < input.track.points.size(); ++i) {
+      const double d = (input.track.points[i] - vertex).squaredNorm();
+      if (d < best_d) {
+        best_d = d;
+        best = i;
+      }
+    }
+    return best + 1;
+  };
   // How far beyond the vertex the next leg is known from repeated sightings (support >= min_support).
   auto leg_known_m = [&](const Vec2d& vertex, const Vec2d& d2) {
     double known = 0.0;
-    for (std::size_t i = 0; i < input.track.points.size() && i < input.track.support.size(); ++i) {
+    for (std::size_t i = after_vertex(vertex); i < input.track.points.size() && i < input.track.support.size(); ++i) {
       const Vec2d r = input.track.points[i] - vertex;
       const double along = r.dot(d2), across = std::abs(d2.x() * r.y() - d2.y() * r.x());
       if (along > 0 && across < 0.05 && input.track.support[i] >= options_.min_support) known = std::max(known, along);
@@ -283,7 +298,9 @@ bool Planner::BlindCorner(const PlannerInput& input, const Pose2& predicted, con
   const Vec2d d2 = legs(c).second;
   const double th = WrapAngle(predicted.yaw - std::atan2(d2.y(), d2.x()));
   bool reacquired = false;
-  for (std::size_t i = 0; i < input.track.points.size() && i < input.track.seen_ns.size(); ++i) {
+  for (std::size_t i = after_vertex(corner_turn_.vertex);
+       i < input.track.points.size() && i < input.track.seen_ns.size();
+       ++i) {
     const Vec2d r = input.track.points[i] - corner_turn_.vertex;
     const double along = r.dot(d2), across = std::abs(d2.x() * r.y() - d2.y() * r.x());
     if (along > 0.1 && across < 0.05 && input.track.seen_ns[i] >= corner_turn_.pivot_ns) {

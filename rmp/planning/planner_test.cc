@@ -465,6 +465,47 @@ TEST(PlannerCornerPivotTest, ACornerMetAgainOnTheNextLapIsTurnedAgain) {
   EXPECT_EQ(again.states.back(), PlanState::kFollow);
 }
 
+// A 165 deg corner: near the vertex the incoming leg lies inside the next leg's band (points of leg 1
+// 10-19 cm back are within 5 cm of leg 2's line). Seeing only the incoming leg again during the pivot
+// is not re-acquiring the next one (before, it was, and the pivot ended as if the next leg were seen).
+TEST(PlannerCornerPivotTest, OnAVerySharpCornerTheIncomingLegIsNotTheNextLeg) {
+  const Vec2d d2(std::cos(DegToRad(-165.0)), std::sin(DegToRad(-165.0)));
+  auto track = [&](int64_t leg1_seen_ns) {
+    TrackAhead t;
+    for (double x = -1.0; x < -1e-9; x += 0.01) t.points.emplace_back(x, 0.0);
+    const std::size_t leg1 = t.points.size();
+    for (double a = 0.0; a <= 1.5 + 1e-9; a += 0.01) t.points.push_back(a * d2);
+    t.support.assign(t.points.size(), 8);
+    t.gap.assign(t.points.size(), false);
+    t.seen_ns.assign(t.points.size(), 0);
+    for (std::size_t i = 0; i < leg1; ++i) t.seen_ns[i] = leg1_seen_ns;
+    t.length_m = 2.5;
+    return t;
+  };
+  Planner planner;
+  Pose2 pose{-0.3, 0.0, 0.0};
+  double v = 0.2, w = 0.0;
+  bool pivoted = false;
+  for (int64_t t = 0; t < 15'000 * kMs; t += 20 * kMs) {
+    PlannerInput in;
+    in.now_ns = t;
+    in.odom_from_vehicle = pose;
+    in.speed_mps = v;
+    in.yaw_rate_rps = w;
+    in.track = track(t);  // the incoming leg seen at every tick, the next leg never again
+    const PlanOutput out = planner.Plan(in);
+    planner.CommandSent(t, out.speed_mps, out.yaw_rate_rps);
+    pivoted = pivoted || out.state == PlanState::kCornerPivot;
+    if (out.state == PlanState::kNoTrack) break;
+    v = out.speed_mps;
+    w = out.yaw_rate_rps;
+    pose = IntegrateUnicycle(pose, v, w, 0.02);
+  }
+  EXPECT_TRUE(pivoted);
+  EXPECT_NE(planner.corner_turn_failure().find("without seeing it again"), std::string::npos)
+      << "failure: '" << planner.corner_turn_failure() << "'";
+}
+
 // An acute corner that is not turned on the spot (its next leg seen only once) ends the known track at
 // its vertex: the vehicle stops there. Before, the corner's arc had radius 0 and no speed limit, so the
 // vehicle reached the vertex at the uncertain-track speed, and the generic pivot then turned it on the
