@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -129,6 +130,8 @@ std::optional<Pose2> ControlLoop::OdometryAt(int64_t t_ns) const {
     const auto& [t1, p1] = odom_history_[i];
     if (t1 < t_ns) continue;
     const auto& [t0, p0] = odom_history_[i - 1];
+    // Not across an outage of the integrators: no pose is known between its ends.
+    if (static_cast<double>(t1 - t0) * 1e-9 > options_.max_odometry_age_s) return std::nullopt;
     const double f = t1 > t0 ? static_cast<double>(t_ns - t0) / static_cast<double>(t1 - t0) : 1.0;
     return Pose2{p0.x + f * (p1.x - p0.x), p0.y + f * (p1.y - p0.y), p0.yaw + f * (p1.yaw - p0.yaw)};
   }
@@ -235,6 +238,10 @@ Decision ControlLoop::Decide(int64_t now_ns, PlanOutput* plan, const Pose2& odom
   return Decision::kDrive;
 }
 
+// A pair's exposure may be this far past the tick (a camera's clock a little ahead) before it is
+// taken for one from the future.
+constexpr int64_t kFutureToleranceNs = 20'000'000;
+
 Result<TickRecord> ControlLoop::Step() {
   const int64_t t = driver_->next_send_ns();
   if (first_tick_) start_ns_ = t;
@@ -257,7 +264,8 @@ Result<TickRecord> ControlLoop::Step() {
   rec.odom = odom;
 
   // Frames: the newest per camera; frozen ones (a repeat of the previous buffer) are not used.
-  IDI_ASSIGN_OR_RETURN(std::vector<hal::Image> frames, frames_->Collect(clock_->NowNs()));
+  const int64_t collected_ns = clock_->NowNs();
+  IDI_ASSIGN_OR_RETURN(std::vector<hal::Image> frames, frames_->Collect(collected_ns));
   for (hal::Image& f : frames) {
     ++stats_.frames;
     if (log_ != nullptr) {
@@ -284,7 +292,7 @@ Result<TickRecord> ControlLoop::Step() {
     const int64_t skew = std::abs(latest_[0]->timestamp_ns - latest_[1]->timestamp_ns);
     if (static_cast<double>(skew) * 1e-9 <= options_.stereo_max_skew_s) {
       const int64_t exposure = (latest_[0]->timestamp_ns + latest_[1]->timestamp_ns) / 2;
-      if (exposure > t) {
+      if (exposure > std::max(t, collected_ns) + kFutureToleranceNs) {
         // Stamped ahead of the clock (a device clock's glitch): not used, and not let to hold back the
         // pairs that follow it (they must be newer than the last pair perceived).
         ++stats_.pairs_from_the_future;

@@ -98,7 +98,8 @@ Status PerceptionOptions::Check() const {
   IDI_RETURN_IF_ERROR(features.Check());
   IDI_RETURN_IF_ERROR(ground.Check());
   if (!correspondence.Check()) return InvalidArgument("perception: invalid correspondence options");
-  if (!(max_range_m > 0)) return InvalidArgument("perception: max_range_m must be positive");
+  // At most the track model's limit on observed points (TrackModel::Update refuses points beyond 100 m).
+  if (!(max_range_m > 0 && max_range_m <= 100)) return InvalidArgument("perception: max_range_m must be in (0, 100] m");
   if (!(border_margin_px >= 0)) return InvalidArgument("perception: border_margin_px must be >= 0");
   if (!(line_transfer_tolerance_px > 0) || !(line_transfer_angle_deg > 0)) {
     return InvalidArgument("perception: line transfer tolerances must be positive");

@@ -213,6 +213,10 @@ TEST(TrackPerceptionTest, RejectsBadImagesAndRigs) {
   StereoRig same = rig;
   same.right = same.left;
   EXPECT_FALSE(TrackPerception::Create(same, {}).ok());
+  // Beyond the track model's 100 m limit on observed points, every observation would be refused.
+  PerceptionOptions far;
+  far.max_range_m = 150;
+  EXPECT_NE(far.Check().message().find("max_range_m"), std::string::npos);
 }
 
 }  // namespace

@@ -193,6 +193,12 @@ bool Planner::BlindCorner(const PlannerInput& input, const Pose2& predicted, con
     const auto [d0, d1] = legs(c);
     return std::atan2(d0.x() * d1.y() - d0.y() * d1.x(), d0.dot(d1));
   };
+  auto failed_before = [&](const Vec2d& v) {
+    for (const Vec2d& t : corners_failed_) {
+      if ((t - v).norm() < 0.2) return true;
+    }
+    return false;
+  };
   auto turned_before = [&](const Vec2d& v) {
     for (const auto* list : {&corners_turned_, &corners_failed_}) {
       for (const Vec2d& t : *list) {
@@ -253,10 +259,11 @@ bool Planner::BlindCorner(const PlannerInput& input, const Pose2& predicted, con
       if (std::abs(turn) >= DegToRad(options_.pivot_corner_min_turn_deg)) {
         if (!turned_before(verts[k + 1]) && leg_known_m(verts[k + 1], legs(k).second) >= options_.pivot_min_leg_m) {
           c = k;
-        } else {
-          // An acute corner not turned on the spot (its next leg not known well enough yet, or the
-          // manoeuvre failed there) ends the known track at its vertex: its arc has radius 0 and no
-          // speed limit, and driving on would reach the vertex at speed and leave the track.
+        } else if (!failed_before(verts[k + 1])) {
+          // An acute corner not (yet) turned on the spot, its next leg not known well enough, ends the
+          // known track at its vertex: its arc has radius 0 and no speed limit, and driving on would
+          // reach the vertex at speed and leave the track. (Where the manoeuvre failed, the vehicle
+          // already stands at the vertex, and the ordinary rules of 5.d apply.)
           *s_stop = std::min(*s_stop, spans[k].first);
         }
       }

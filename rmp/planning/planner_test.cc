@@ -419,6 +419,35 @@ TEST(PlannerCornerPivotTest, StopsWhenFacingTheRememberedLegWithoutSeeingIt) {
   EXPECT_LT(r.pose.translation().norm(), 0.03);
 }
 
+// After a failed manoeuvre the vehicle stands at the vertex; once the track is seen again the ordinary
+// rules hold there (the corner is not retried), and the vehicle is not held at the vertex for ever.
+TEST(PlannerCornerPivotTest, AfterAFailedTurnTheTrackSeenAgainIsFollowed) {
+  Planner planner;
+  const PivotRun r = RunAcuteCorner(-1.0, false, &planner);
+  ASSERT_EQ(r.states.back(), PlanState::kNoTrack);
+  ASSERT_NE(planner.corner_turn_failure().find("without seeing it again"), std::string::npos);
+  Pose2 pose = r.pose;
+  double v = 0.0, w = 0.0, max_v = 0.0;
+  for (int64_t t = r.end_ns + 20 * kMs; t < r.end_ns + 10'000 * kMs; t += 20 * kMs) {
+    PlannerInput in;
+    in.now_ns = t;
+    in.odom_from_vehicle = pose;
+    in.speed_mps = v;
+    in.yaw_rate_rps = w;
+    in.track = AcuteCornerAhead(t);  // seen again
+    const PlanOutput out = planner.Plan(in);
+    planner.CommandSent(t, out.speed_mps, out.yaw_rate_rps);
+    v = out.speed_mps;
+    w = out.yaw_rate_rps;
+    max_v = std::max(max_v, v);
+    pose = IntegrateUnicycle(pose, v, w, 0.02);
+  }
+  EXPECT_FALSE(planner.corner_turn_active());
+  EXPECT_GT(max_v, 0.05);
+  const Vec2d d2(std::cos(-3 * kPi / 4), std::sin(-3 * kPi / 4));
+  EXPECT_GT(pose.translation().dot(d2), 0.2) << "it went on down the next leg";
+}
+
 TEST(PlannerCornerPivotTest, GivesUpWhenTheTurnTakesTooLong) {
   Planner planner;
   const PivotRun r = RunAcuteCorner(-1.0, true, &planner);

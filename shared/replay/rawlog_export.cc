@@ -49,9 +49,13 @@ Status ExportRawlog(const std::vector<RawlogFrame>& frames, const std::string& p
     why = std::string(": ") + e.what();
   }
   std::error_code ec;
-  if (ok) std::filesystem::rename(tmp, path, ec);
+  if (ok) {
+    std::filesystem::rename(tmp, path, ec);
+    if (ec) why = ": cannot replace it with " + tmp + ": " + ec.message();
+  }
   if (!ok || ec) {
-    std::filesystem::remove(tmp, ec);
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
     return IoError(path + ": cannot write the rawlog" + why);
   }
   return Status::Ok();

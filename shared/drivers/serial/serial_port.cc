@@ -246,10 +246,10 @@ Result<std::string> SerialPort::ReadLine(std::chrono::milliseconds timeout) {
     }
     IDI_ASSIGN_OR_RETURN(const bool got, FillBuffer(SerialMsLeft(deadline)));
     if (!got && SerialClock::now() >= deadline) {
+      // A line that stayed quiet this long has ended: what comes next is a new line, not its tail.
+      if (std::exchange(skip_to_line_end_, false)) buffer_.clear();
       return Timeout(name_ + ": no complete line within " + std::to_string(timeout.count()) + " ms" +
-                     (buffer_.empty() || skip_to_line_end_
-                          ? std::string()
-                          : " (partial: " + std::to_string(buffer_.size()) + " bytes)"));
+                     (buffer_.empty() ? std::string() : " (partial: " + std::to_string(buffer_.size()) + " bytes)"));
     }
   }
 }
@@ -294,6 +294,10 @@ Result<std::string> SerialPort::ReadUntil(std::string_view delimiter, std::chron
     }
     IDI_ASSIGN_OR_RETURN(const bool got, FillBuffer(SerialMsLeft(deadline)));
     if (!got && SerialClock::now() >= deadline) {
+      if (!skip_to_.empty()) {  // as in ReadLine: after the quiet, a new block
+        skip_to_.clear();
+        buffer_.clear();
+      }
       return Timeout(name_ + ": delimiter not seen within " + std::to_string(timeout.count()) + " ms");
     }
   }

@@ -88,6 +88,12 @@ TEST(SerialPortTest, AnOverlongLineIsDroppedWholeAndItsTailIsNeverALine) {
   const auto next = p.host->ReadLine(milliseconds(200));
   ASSERT_TRUE(next.ok()) << next.status().ToString();
   EXPECT_EQ(*next, "* 1");  // not "yyy", the overlong line's tail
+  // An overflow followed by quiet: the overlong line has ended, and the next reply is read whole.
+  ASSERT_TRUE(p.device->Write(std::string(200, 'x'), milliseconds(100)).ok());
+  EXPECT_EQ(p.host->ReadLine(milliseconds(200)).status().code(), StatusCode::kDeviceError);
+  EXPECT_EQ(p.host->ReadLine(milliseconds(30)).status().code(), StatusCode::kTimeout);
+  ASSERT_TRUE(p.device->Write("* 2\r", milliseconds(100)).ok());
+  EXPECT_EQ(p.host->ReadLine(milliseconds(200)).value(), "* 2");
 }
 
 TEST(SerialPortTest, AnOverlongBlockBeforeAPromptIsDroppedWhole) {
@@ -99,10 +105,16 @@ TEST(SerialPortTest, AnOverlongBlockBeforeAPromptIsDroppedWhole) {
   EXPECT_EQ(p.host->ReadUntil("=> ", milliseconds(200)).value(), "ok");
   ASSERT_TRUE(p.device->Write(std::string(200, 'G'), milliseconds(100)).ok());
   EXPECT_EQ(p.host->ReadUntil("=> ", milliseconds(200)).status().code(), StatusCode::kDeviceError);
+  // The rest of the block, its delimiter split across writes, is dropped with it.
   ASSERT_TRUE(p.device->Write("GGG=", milliseconds(100)).ok());
-  EXPECT_EQ(p.host->ReadUntil("=> ", milliseconds(30)).status().code(), StatusCode::kTimeout);
-  ASSERT_TRUE(p.device->Write("> 1234\r\n=> ", milliseconds(100)).ok());  // the delimiter split across writes
+  ASSERT_TRUE(p.device->Write("> 1234\r\n=> ", milliseconds(100)).ok());
   EXPECT_EQ(p.host->ReadUntil("=> ", milliseconds(200)).value(), "1234\r\n");
+  // An overflow followed by quiet: that block has ended, and the next one is read whole.
+  ASSERT_TRUE(p.device->Write(std::string(200, 'G'), milliseconds(100)).ok());
+  EXPECT_EQ(p.host->ReadUntil("=> ", milliseconds(200)).status().code(), StatusCode::kDeviceError);
+  EXPECT_EQ(p.host->ReadUntil("=> ", milliseconds(30)).status().code(), StatusCode::kTimeout);
+  ASSERT_TRUE(p.device->Write("ok=> ", milliseconds(100)).ok());
+  EXPECT_EQ(p.host->ReadUntil("=> ", milliseconds(200)).value(), "ok");
 }
 
 // On a socket (the VAL3 link) there is no tcflush: a late reply the kernel holds is dropped too.

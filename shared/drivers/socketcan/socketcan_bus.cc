@@ -153,7 +153,7 @@ Status SocketCanBus::OpenSocket() {
 }
 
 Status SocketCanBus::Reopen() {
-  last_reopen_ns_ = clock_->NowNs();
+  last_reopen_ns_ = SteadyNs();
   IDI_RETURN_IF_ERROR(OpenSocket());
   state_ = hal::CanControllerState::kErrorActive;
   return Status::Ok();
@@ -161,7 +161,7 @@ Status SocketCanBus::Reopen() {
 
 Status SocketCanBus::MaybeReopen() {
   if (fd_ >= 0) return Status::Ok();
-  const int64_t now = clock_->NowNs();
+  const int64_t now = SteadyNs();
   if (now - last_reopen_ns_ < static_cast<int64_t>(options_.reopen_interval.count()) * hal::kNsPerMs) {
     return DeviceError("SocketCAN " + options_.interface + ": interface unavailable, reopening later");
   }
@@ -171,7 +171,7 @@ Status SocketCanBus::MaybeReopen() {
 Status SocketCanBus::InterfaceGone(const std::string& what, int err) {
   // The socket stays bound to a vanished or downed interface; start afresh later.
   CloseSocket();
-  last_reopen_ns_ = clock_->NowNs();
+  last_reopen_ns_ = SteadyNs();
   return DeviceError("SocketCAN " + options_.interface + ": " + what + ": " + ErrnoName(err) +
                      (err == ENETDOWN ? " (interface down or controller bus-off)" : ""));
 }

@@ -154,6 +154,8 @@ std::optional<FingerContact> SweepFinger(const HandTruth& hand, int finger, doub
     }
     return false;
   };
+  // A NaN start never reached the closed end of the sweep below (a loop without end).
+  if (!std::isfinite(start) || !std::isfinite(spread) || finger < 0 || finger > 2) return std::nullopt;
   // Already touching: the finger cannot move (it stalls where it is).
   double free_at = start;
   double hit = -1;

@@ -71,6 +71,15 @@ TEST(HandPhysicsTest, TwoOnOneAcrossABoxHolds) {
   EXPECT_GT(j.worst_cone_margin_deg, 10.0);
 }
 
+// A finger whose start is NaN never reached the end of its sweep (a loop without end): no contact.
+TEST(HandPhysicsTest, ANonFiniteStartOrAFingerBeyondTheThumbHasNoContact) {
+  const HandTruth hand;
+  const auto obstacles = ObjectOnTable(Box(60, 60, 80), Translation(0.0, 0.0, 120.0) * RotX(kPi));
+  EXPECT_FALSE(SweepFinger(hand, 2, 0.0, std::nan(""), obstacles).has_value());
+  EXPECT_FALSE(SweepFinger(hand, 2, std::nan(""), 0.0, obstacles).has_value());
+  EXPECT_FALSE(SweepFinger(hand, 3, 0.0, 0.0, obstacles).has_value());
+}
+
 TEST(HandPhysicsTest, OffCentreHandDoesNotHold) {
   const HandTruth hand;
   const ObjectShape box = Box(100, 80, 60);
