@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <deque>
+#include <functional>
 
 #include "rmp/track/synthetic_observation.h"
 #include "rmp/track/track_model.h"
@@ -419,6 +420,34 @@ TEST(PlannerCornerPivotTest, StopsWhenFacingTheRememberedLegWithoutSeeingIt) {
   EXPECT_LT(r.pose.translation().norm(), 0.03);
 }
 
+// An ideal vehicle (it does what is commanded, at once) driven by `planner` in 20 ms ticks from t0_ns
+// to t1_ns on the track `track_at(t)`; `on_plan` sees each output and returns false to stop there.
+struct IdealVehicle {
+  Pose2 pose;
+  double v = 0.0, w = 0.0;
+};
+void DriveIdeal(Planner* planner,
+                IdealVehicle* vehicle,
+                int64_t t0_ns,
+                int64_t t1_ns,
+                const std::function<TrackAhead(int64_t)>& track_at,
+                const std::function<bool(const PlanOutput&)>& on_plan) {
+  for (int64_t t = t0_ns; t < t1_ns; t += 20 * kMs) {
+    PlannerInput in;
+    in.now_ns = t;
+    in.odom_from_vehicle = vehicle->pose;
+    in.speed_mps = vehicle->v;
+    in.yaw_rate_rps = vehicle->w;
+    in.track = track_at(t);
+    const PlanOutput out = planner->Plan(in);
+    planner->CommandSent(t, out.speed_mps, out.yaw_rate_rps);
+    if (!on_plan(out)) return;
+    vehicle->v = out.speed_mps;
+    vehicle->w = out.yaw_rate_rps;
+    vehicle->pose = IntegrateUnicycle(vehicle->pose, vehicle->v, vehicle->w, 0.02);
+  }
+}
+
 // After a failed manoeuvre the vehicle stands at the vertex; once the track is seen again the ordinary
 // rules hold there (the corner is not retried), and the vehicle is not held at the vertex for ever.
 TEST(PlannerCornerPivotTest, AfterAFailedTurnTheTrackSeenAgainIsFollowed) {
@@ -426,22 +455,19 @@ TEST(PlannerCornerPivotTest, AfterAFailedTurnTheTrackSeenAgainIsFollowed) {
   const PivotRun r = RunAcuteCorner(-1.0, false, &planner);
   ASSERT_EQ(r.states.back(), PlanState::kNoTrack);
   ASSERT_NE(planner.corner_turn_failure().find("without seeing it again"), std::string::npos);
-  Pose2 pose = r.pose;
-  double v = 0.0, w = 0.0, max_v = 0.0;
-  for (int64_t t = r.end_ns + 20 * kMs; t < r.end_ns + 10'000 * kMs; t += 20 * kMs) {
-    PlannerInput in;
-    in.now_ns = t;
-    in.odom_from_vehicle = pose;
-    in.speed_mps = v;
-    in.yaw_rate_rps = w;
-    in.track = AcuteCornerAhead(t);  // seen again
-    const PlanOutput out = planner.Plan(in);
-    planner.CommandSent(t, out.speed_mps, out.yaw_rate_rps);
-    v = out.speed_mps;
-    w = out.yaw_rate_rps;
-    max_v = std::max(max_v, v);
-    pose = IntegrateUnicycle(pose, v, w, 0.02);
-  }
+  IdealVehicle vehicle{r.pose};
+  double max_v = 0.0;
+  DriveIdeal(
+      &planner,
+      &vehicle,
+      r.end_ns + 20 * kMs,
+      r.end_ns + 10'000 * kMs,
+      [](int64_t t) { return AcuteCornerAhead(t); },  // seen again
+      [&](const PlanOutput& out) {
+        max_v = std::max(max_v, out.speed_mps);
+        return true;
+      });
+  const Pose2& pose = vehicle.pose;
   EXPECT_FALSE(planner.corner_turn_active());
   EXPECT_GT(max_v, 0.05);
   const Vec2d d2(std::cos(-3 * kPi / 4), std::sin(-3 * kPi / 4));
@@ -512,24 +538,13 @@ TEST(PlannerCornerPivotTest, OnAVerySharpCornerTheIncomingLegIsNotTheNextLeg) {
     return t;
   };
   Planner planner;
-  Pose2 pose{-0.3, 0.0, 0.0};
-  double v = 0.2, w = 0.0;
+  IdealVehicle vehicle{{-0.3, 0.0, 0.0}, 0.2, 0.0};
   bool pivoted = false;
-  for (int64_t t = 0; t < 15'000 * kMs; t += 20 * kMs) {
-    PlannerInput in;
-    in.now_ns = t;
-    in.odom_from_vehicle = pose;
-    in.speed_mps = v;
-    in.yaw_rate_rps = w;
-    in.track = track(t);  // the incoming leg seen at every tick, the next leg never again
-    const PlanOutput out = planner.Plan(in);
-    planner.CommandSent(t, out.speed_mps, out.yaw_rate_rps);
+  // The incoming leg seen at every tick, the next leg never again.
+  DriveIdeal(&planner, &vehicle, 0, 15'000 * kMs, track, [&](const PlanOutput& out) {
     pivoted = pivoted || out.state == PlanState::kCornerPivot;
-    if (out.state == PlanState::kNoTrack) break;
-    v = out.speed_mps;
-    w = out.yaw_rate_rps;
-    pose = IntegrateUnicycle(pose, v, w, 0.02);
-  }
+    return out.state != PlanState::kNoTrack;
+  });
   EXPECT_TRUE(pivoted);
   EXPECT_NE(planner.corner_turn_failure().find("without seeing it again"), std::string::npos)
       << "failure: '" << planner.corner_turn_failure() << "'";
@@ -541,24 +556,24 @@ TEST(PlannerCornerPivotTest, OnAVerySharpCornerTheIncomingLegIsNotTheNextLeg) {
 // spot without the manoeuvre's checks.
 TEST(PlannerCornerPivotTest, StopsAtAnAcuteCornerItDoesNotTurn) {
   Planner planner;
-  Pose2 pose{-0.3, 0.0, 0.0};
-  double v = 0.2, w = 0.0;
+  IdealVehicle vehicle{{-0.3, 0.0, 0.0}, 0.2, 0.0};
   bool pivoted = false;
-  for (int64_t t = 0; t < 6'000 * kMs; t += 20 * kMs) {
-    PlannerInput in;
-    in.now_ns = t;
-    in.odom_from_vehicle = pose;
-    in.speed_mps = v;
-    in.yaw_rate_rps = w;
-    in.track = AcuteCornerAhead(0);
-    in.track.support.assign(in.track.support.size(), 1);
-    const PlanOutput out = planner.Plan(in);
-    planner.CommandSent(t, out.speed_mps, out.yaw_rate_rps);
-    pivoted = pivoted || out.state == PlanState::kPivot || out.state == PlanState::kCornerPivot;
-    v = out.speed_mps;
-    w = out.yaw_rate_rps;
-    pose = IntegrateUnicycle(pose, v, w, 0.02);
-  }
+  DriveIdeal(
+      &planner,
+      &vehicle,
+      0,
+      6'000 * kMs,
+      [](int64_t) {
+        TrackAhead t = AcuteCornerAhead(0);
+        t.support.assign(t.support.size(), 1);
+        return t;
+      },
+      [&](const PlanOutput& out) {
+        pivoted = pivoted || out.state == PlanState::kPivot || out.state == PlanState::kCornerPivot;
+        return true;
+      });
+  const Pose2& pose = vehicle.pose;
+  const double v = vehicle.v;
   EXPECT_FALSE(pivoted);
   EXPECT_FALSE(planner.corner_turn_active());
   EXPECT_EQ(v, 0.0);
