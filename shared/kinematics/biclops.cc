@@ -22,7 +22,10 @@ TcfPose TcfPoseFromTransform(const Rigid3d& t) {
   p.beta_rad = std::atan2(sb, r(2, 2));
   if (sb > 1e-12) {
     p.alpha_rad = std::atan2(r(1, 2), r(0, 2));
-    p.gamma_rad = std::atan2(r(2, 1), -r(2, 0));
+    // Gamma from what Rz(alpha) Ry(beta) leaves (Rz(gamma)), not from the third row alone: for a small
+    // beta that row is mostly rounding noise, and the pose rebuilt from it missed R by up to 1e-4 rad.
+    const Mat3d left = (RotZ(p.alpha_rad) * RotY(p.beta_rad)).rotation.transpose() * r;
+    p.gamma_rad = std::atan2(left(1, 0), left(0, 0));
   } else {
     // Gimbal lock: only alpha + gamma (beta = 0) or alpha - gamma (beta = pi) is defined; put it
     // all in alpha. With beta = 0, R = Rz(alpha); with beta = pi, R(0,0) = -cos a, R(1,0) = -sin a.

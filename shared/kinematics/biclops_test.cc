@@ -42,6 +42,19 @@ TEST(BiclopsTest, TcfPoseRoundTrip) {
   }
 }
 
+// Just outside the gimbal-lock band (a tool tilted by 2e-12 rad, e.g. a flange pose from IK pointing
+// straight down): alpha and gamma from the third row and column alone are mostly rounding noise, and the
+// pose rebuilt from them was off by up to 1e-4 rad. Gamma from what alpha and beta leave rebuilds it.
+TEST(BiclopsTest, TcfPoseRoundTripNearGimbalLock) {
+  for (const double a : {0.3, -2.0, 1.1}) {
+    for (const double g : {0.7, -1.4, 2.9}) {
+      const Rigid3d t = Translation(1.0, 2.0, 3.0) * RotZ(a) * RotY(1.0) * RotY(-1.0 + 2e-12) * RotZ(g);
+      const Rigid3d back = BaseFromTcf(TcfPoseFromTransform(t));
+      EXPECT_LT((back.rotation - t.rotation).cwiseAbs().maxCoeff(), 1e-12) << a << " " << g;
+    }
+  }
+}
+
 TEST(BiclopsTest, PtuBaseMatchesEq311) {
   std::vector<double> ptu(kPtuParamCount, 0.0);
   ptu[kPtuTx] = 1;
