@@ -24,10 +24,7 @@ std::string ErrnoName(int err) { return std::string(std::strerror(err)) + " (err
 // Timeouts run on the steady clock, whatever clock stamps the frames (a simulated one that does not
 // advance would make them endless), and are capped at a day (a "forever" of milliseconds::max()
 // overflowed the conversion to ns).
-int64_t SteadyNs() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
+int64_t SteadyNs() { return hal::MonotonicClock().NowNs(); }
 int64_t DeadlineNs(std::chrono::milliseconds timeout) {
   constexpr int64_t kDayMs = 86'400'000;
   return SteadyNs() + std::clamp<int64_t>(timeout.count(), 0, kDayMs) * hal::kNsPerMs;
