@@ -199,6 +199,29 @@ TEST(ClosedLoopTest, MissingWheelIntegratorsCommandZeroUntilTheyComeBack) {
   ExpectNeverDroveOnStaleData(seen);
 }
 
+// The cameras' clock glitches once: both frames of one capture are stamped 10 s ahead. That pair is
+// not perceived, and it does not hold back the pairs after it (before, every pair was refused until the
+// clock reached the glitch's stamp, and the vehicle stood for 10 s).
+TEST(ClosedLoopTest, APairStampedAheadOfTheClockIsNotUsedAndHoldsNothingBack) {
+  Observed seen;
+  SimRunOptions o = SmallRun(kStraight, &seen);
+  o.config.sim.faults.stamp_glitch_at_s = 1.5;
+  o.config.sim.faults.stamp_glitch_s = 10.0;
+  o.max_time_s = 9.0;
+  auto res = RunSimulation(o);
+  ASSERT_TRUE(res.ok()) << res.status().ToString();
+  EXPECT_EQ(res->stats.pairs_from_the_future, 1u);
+  EXPECT_EQ(res->report.ToJson().at("pairs_from_the_future").get<uint64_t>(), 1u);
+  for (const TickRecord& r : seen.ticks) {
+    if (r.perceived) {
+      EXPECT_LE(r.perception_exposure_ns, r.t_ns) << "a pair from the future was perceived";
+    }
+  }
+  EXPECT_TRUE(res->report.completed) << res->report.ToJson().dump();
+  EXPECT_EQ(res->report.decisions.count("perception-stale") ? res->report.decisions.at("perception-stale") : 0u, 0u);
+  ExpectNeverDroveOnStaleData(seen);
+}
+
 // control.max_run_s bounds a run: the twin stops there when no --max-time-s is given.
 TEST(ClosedLoopTest, MaxRunSEndsTheRun) {
   Observed seen;

@@ -369,6 +369,8 @@ Result<RmpConfig> ParseRmpConfig(const std::string& text, const std::string& sou
       fr.Number("bus_off_duration_s", &f.bus_off_duration_s);
       fr.Number("battery_drop_at_s", &f.battery_drop_at_s);
       fr.Number("battery_drop_v", &f.battery_drop_v);
+      fr.Number("stamp_glitch_at_s", &f.stamp_glitch_at_s);
+      fr.Number("stamp_glitch_s", &f.stamp_glitch_s);
       fr.Custom("covered_m", [&](const YAML::Node& list) -> Status {
         if (!list.IsSequence()) return InvalidArgument(fr.Where(list) + ": sim.faults.covered_m must be a list of [from, to]");
         f.covered_m.clear();

@@ -24,7 +24,8 @@
 //              slip_noise_m_per_sqrt_m, faults: {frozen_camera, frozen_from_s, frozen_to_s,
 //              drop_probability, dead_camera, dead_from_s, dead_to_s, rmp_silent_from_s, rmp_silent_to_s,
 //              integrators_missing_from_s, integrators_missing_to_s, bus_off_at_s, bus_off_duration_s,
-//              battery_drop_at_s, battery_drop_v, covered_m: [[from, to], ...]}}
+//              battery_drop_at_s, battery_drop_v, stamp_glitch_at_s, stamp_glitch_s,
+//              covered_m: [[from, to], ...]}}
 //   replay:   {dir}
 #pragma once
 

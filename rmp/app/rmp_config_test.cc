@@ -39,7 +39,8 @@ TEST(RmpConfigTest, ReadsSectionsWithUnits) {
       "  left: {fx_px: 300, pitch_down_deg: 50}\n"
       "sim:\n"
       "  camera_rate_hz: 10\n"
-      "  faults: {frozen_camera: left, frozen_from_s: 2, frozen_to_s: 4, covered_m: [[1, 2]]}\n",
+      "  faults: {frozen_camera: left, frozen_from_s: 2, frozen_to_s: 4, covered_m: [[1, 2]], stamp_glitch_at_s: 3,\n"
+      "           stamp_glitch_s: 0.5}\n",
       "c.yaml");
   ASSERT_TRUE(c.ok()) << c.status().ToString();
   EXPECT_DOUBLE_EQ(c->planner.cruise_speed_mps, 0.8);
@@ -49,6 +50,8 @@ TEST(RmpConfigTest, ReadsSectionsWithUnits) {
   EXPECT_DOUBLE_EQ(c->rig.left.intrinsics.fx(), 300.0);
   EXPECT_DOUBLE_EQ(c->rig.right.intrinsics.fx(), 320.0);
   EXPECT_EQ(c->sim.faults.frozen_camera, "left");
+  EXPECT_EQ(c->sim.faults.stamp_glitch_at_s, 3.0);
+  EXPECT_EQ(c->sim.faults.stamp_glitch_s, 0.5);
   ASSERT_EQ(c->sim.faults.covered_m.size(), 1u);
 }
 
@@ -92,7 +95,9 @@ TEST(RmpConfigTest, RefusesMistakesNamingFileLineAndKey) {
   for (const char* text : {"sim: {faults: {rmp_silent_from_s: 1.0e10}}\n",
                            "sim: {faults: {bus_off_duration_s: 1.0e12}}\n",
                            "sim: {faults: {rmp_silent_from_s: 3, rmp_silent_to_s: 2}}\n",
-                           "sim: {faults: {integrators_missing_from_s: 3, integrators_missing_to_s: 3}}\n"}) {
+                           "sim: {faults: {integrators_missing_from_s: 3, integrators_missing_to_s: 3}}\n",
+                           "sim: {faults: {stamp_glitch_at_s: 1, stamp_glitch_s: -2}}\n",
+                           "sim: {faults: {stamp_glitch_at_s: 1, stamp_glitch_s: 1.0e9}}\n"}) {
     const auto r = ParseRmpConfig(text, "c.yaml");
     ASSERT_FALSE(r.ok()) << text;
     EXPECT_NE(r.status().message().find("sim faults"), std::string::npos) << text << ": " << r.status().message();

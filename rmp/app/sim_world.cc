@@ -25,6 +25,7 @@ Status SimFaults::Check() const {
   }
   if (!(drop_probability >= 0 && drop_probability < 1)) return InvalidArgument("sim faults: drop_probability must be in [0, 1)");
   if (!(bus_off_duration_s >= 0)) return InvalidArgument("sim faults: bus_off_duration_s must be >= 0");
+  if (!(stamp_glitch_s >= 0)) return InvalidArgument("sim faults: stamp_glitch_s must be >= 0");
   // Times on the twin's clock (nanoseconds in 64 bits): negative means never; a week is the limit.
   constexpr double kMaxS = 7 * 24 * 3600.0;
   const std::pair<const char*, double> times[] = {{"frozen_from_s", frozen_from_s},
@@ -37,7 +38,9 @@ Status SimFaults::Check() const {
                                                   {"integrators_missing_to_s", integrators_missing_to_s},
                                                   {"bus_off_at_s", bus_off_at_s},
                                                   {"bus_off_duration_s", bus_off_duration_s},
-                                                  {"battery_drop_at_s", battery_drop_at_s}};
+                                                  {"battery_drop_at_s", battery_drop_at_s},
+                                                  {"stamp_glitch_at_s", stamp_glitch_at_s},
+                                                  {"stamp_glitch_s", stamp_glitch_s}};
   for (const auto& [name, t] : times) {
     if (!(std::isfinite(t) && t <= kMaxS))
       return InvalidArgument(std::string("sim faults: ") + name +
@@ -131,6 +134,8 @@ class TwinCameras final : public sim::SimProcess, public FrameSource {
       img[k].camera = name;
       img[k].sequence = seq_[k];
       img[k].timestamp_ns = t_ns;
+      if (f.stamp_glitch_at_s >= 0 && t_s >= f.stamp_glitch_at_s && !glitched_)
+        img[k].timestamp_ns += SecToNsRound(f.stamp_glitch_s);
       if (name == f.frozen_camera && t_s >= f.frozen_from_s && t_s < f.frozen_to_s && !last_[k].empty()) {
         img[k].pixels = last_[k];  // the same buffer again
       } else {
@@ -170,6 +175,7 @@ class TwinCameras final : public sim::SimProcess, public FrameSource {
       }
       pending_.emplace_back(t_ns + latency_ns_, std::move(img[k]));
     }
+    if (f.stamp_glitch_at_s >= 0 && t_s >= f.stamp_glitch_at_s) glitched_ = true;
     if (world_->following_) CountVisibility(world_from_vehicle);
   }
 
@@ -219,6 +225,7 @@ class TwinCameras final : public sim::SimProcess, public FrameSource {
   int64_t period_ns_ = 0, latency_ns_ = 0, next_ns_ = 0;
   int pair_render_threads_ = 1;
   uint64_t seq_[2] = {0, 0};
+  bool glitched_ = false;  // the stamp glitch of the faults happened
   cv::Mat last_[2];
   std::deque<std::pair<int64_t, hal::Image>> pending_;
   int visible_frames_ = 0;

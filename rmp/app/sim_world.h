@@ -38,6 +38,9 @@ struct SimFaults {
   double bus_off_at_s = -1, bus_off_duration_s = 0.5;   // our CAN controller goes bus-off
   double battery_drop_at_s = -1, battery_drop_v = 0.0;  // the powerbase battery sags
   std::vector<std::pair<double, double>> covered_m;     // stretches of tape covered by a mat
+  // A glitch of the cameras' clock: both frames of the first capture at or after stamp_glitch_at_s are
+  // stamped stamp_glitch_s later than their exposure (the frames after it are stamped right again).
+  double stamp_glitch_at_s = -1, stamp_glitch_s = 0.0;
 
   Status Check() const;
 };
