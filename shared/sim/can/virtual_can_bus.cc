@@ -60,7 +60,10 @@ Status VirtualCanEndpoint::Send(const hal::CanFrame& frame) { return bus_->Trans
 
 Result<std::optional<hal::CanFrame>> VirtualCanEndpoint::Receive(std::chrono::milliseconds timeout) {
   hal::SimClock* clock = bus_->clock_;
-  const int64_t deadline = clock->NowNs() + std::max<int64_t>(0, static_cast<int64_t>(timeout.count())) * 1'000'000;
+  // Saturating, and short of kNeverNs (a deadline there would never be reached by AdvanceTo).
+  const int64_t start = clock->NowNs();
+  const int64_t max_ms = (kNeverNs - 1 - start) / 1'000'000;
+  const int64_t deadline = start + std::clamp<int64_t>(static_cast<int64_t>(timeout.count()), 0, max_ms) * 1'000'000;
   if (!bus_->running_processes_) bus_->AdvanceTo(clock->NowNs());
   while (true) {
     const int64_t now = clock->NowNs();
@@ -207,6 +210,8 @@ void VirtualCanBus::RunDue(int64_t now_ns) {
 
 void VirtualCanBus::AdvanceTo(int64_t t_ns) {
   IDI_CHECK(!running_processes_, "VirtualCanBus::AdvanceTo called from inside a SimProcess");
+  // kNeverNs is "no event": time never reaches it (the loop below would not end there).
+  t_ns = std::min(t_ns, kNeverNs - 1);
   while (true) {
     const int64_t next = NextEventNs();
     if (next > t_ns) break;
@@ -223,7 +228,7 @@ void VirtualCanBus::InjectBusOff(VirtualCanEndpoint* endpoint, int64_t duration_
   while (!endpoint->rx_.empty() && endpoint->rx_.back().timestamp_ns > now) endpoint->rx_.pop_back();
   endpoint->bus_off_ = true;
   ++endpoint->counters_.bus_off;
-  endpoint->restart_at_ns_ = duration_ns >= 0 ? now + duration_ns : kNeverNs;
+  endpoint->restart_at_ns_ = duration_ns >= 0 && duration_ns < kNeverNs - now ? now + duration_ns : kNeverNs;
   Deliver(endpoint, hal::MakeCanErrorFrame(now, hal::kCanErrBusOff));
 }
 

@@ -97,6 +97,29 @@ TEST(VirtualCanBusTest, ReceiveTimeoutRunsProcessesAndAdvancesTheClock) {
   EXPECT_EQ(pc->queued(), 9u);
 }
 
+// The longest timeouts saturate (a deadline of now + milliseconds::max() overflowed), and time never
+// reaches kNeverNs, the bus's "no event" (a deadline there left AdvanceTo in a loop without end).
+TEST(VirtualCanBusTest, EndlessTimeoutsAndTimesSaturate) {
+  hal::SimClock clock;
+  VirtualCanBus bus(&clock);
+  VirtualCanEndpoint* pc = bus.AddEndpoint("pc");
+  PeriodicSender rmp(bus.AddEndpoint("rmp"), 5 * kMs, 10 * kMs);
+  bus.AddProcess(&rmp);
+  auto f = pc->Receive(std::chrono::milliseconds::max());
+  ASSERT_TRUE(f.ok()) << f.status().ToString();
+  ASSERT_TRUE(f->has_value());
+  EXPECT_EQ((*f)->timestamp_ns, 5 * kMs + 270 * kUs);
+
+  hal::SimClock idle_clock;
+  VirtualCanBus idle(&idle_clock);
+  VirtualCanEndpoint* alone = idle.AddEndpoint("alone");
+  idle.AdvanceTo(kNeverNs);
+  EXPECT_EQ(idle_clock.NowNs(), kNeverNs - 1);
+  EXPECT_FALSE(Recv(alone, 1000).has_value()) << "at the end of time, a timeout returns at once";
+  idle.InjectBusOff(alone, 10 * kMs);  // the restart time saturates: never
+  EXPECT_TRUE(alone->bus_off());
+}
+
 TEST(VirtualCanBusTest, FiltersAsSocketCan) {
   hal::SimClock clock;
   VirtualCanBus bus(&clock);

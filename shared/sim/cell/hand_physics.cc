@@ -154,8 +154,9 @@ std::optional<FingerContact> SweepFinger(const HandTruth& hand, int finger, doub
     }
     return false;
   };
-  // A NaN start never reached the closed end of the sweep below (a loop without end).
-  if (!std::isfinite(start) || !std::isfinite(spread) || finger < 0 || finger > 2) return std::nullopt;
+  // A NaN start never reached the closed end of the sweep below (a loop without end), nor did one so
+  // far from it that a step no longer changes it; a finger's reading is an angle within a turn.
+  if (!(std::abs(start) <= 2 * M_PI) || !std::isfinite(spread) || finger < 0 || finger > 2) return std::nullopt;
   // Already touching: the finger cannot move (it stalls where it is).
   double free_at = start;
   double hit = -1;

@@ -52,7 +52,8 @@ struct FingerContact {
 };
 
 // Where finger `finger` stalls when closed from `start_rad`: the first reading at which its link (a
-// swept capsule, sampled across its width) meets an obstacle. nullopt when it closes fully.
+// swept capsule, sampled across its width) meets an obstacle. nullopt when it closes fully, and for a
+// finger index beyond 0..2, a NaN spread or a start that is not an angle within a turn.
 std::optional<FingerContact> SweepFinger(const HandTruth& hand, int finger, double spread_rad, double start_rad,
                                          const std::vector<Obstacle>& obstacles);
 

@@ -78,6 +78,9 @@ TEST(HandPhysicsTest, ANonFiniteStartOrAFingerBeyondTheThumbHasNoContact) {
   EXPECT_FALSE(SweepFinger(hand, 2, 0.0, std::nan(""), obstacles).has_value());
   EXPECT_FALSE(SweepFinger(hand, 2, std::nan(""), 0.0, obstacles).has_value());
   EXPECT_FALSE(SweepFinger(hand, 3, 0.0, 0.0, obstacles).has_value());
+  // A start so far out that a step of the sweep no longer changes it (it looped for ever).
+  EXPECT_FALSE(SweepFinger(hand, 2, 0.0, -1e20, obstacles).has_value());
+  EXPECT_FALSE(SweepFinger(hand, 2, 0.0, -1e6, obstacles).has_value());
 }
 
 TEST(HandPhysicsTest, OffCentreHandDoesNotHold) {

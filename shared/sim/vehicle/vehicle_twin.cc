@@ -87,7 +87,12 @@ VehicleTwin::VehicleTwin(const VehicleTwinOptions& options, int64_t start_ns)
   sensors_.ui_battery_v = options_.ui_battery_start_v;
 }
 
-void VehicleTwin::Command(int64_t t_ns, const VehicleCommand& command) {
+void VehicleTwin::Command(int64_t t_ns, const VehicleCommand& in) {
+  // The firmware receives integer counts: a value that is not a number cannot reach it (it would
+  // otherwise turn the whole state into NaN).
+  VehicleCommand command = in;
+  if (!std::isfinite(command.speed_mps)) command.speed_mps = 0.0;
+  if (!std::isfinite(command.yaw_rate_rps)) command.yaw_rate_rps = 0.0;
   const int64_t received = std::max(t_ns, now_ns_);
   const int64_t effective = received + static_cast<int64_t>(std::llround(options_.command_latency_s * 1e9));
   // Commands arrive in order; a late one with an earlier time still queues behind the others.
@@ -97,9 +102,14 @@ void VehicleTwin::Command(int64_t t_ns, const VehicleCommand& command) {
   have_command_ = true;
 }
 
-void VehicleTwin::SetSpeedScale(double fraction) { speed_scale_ = std::clamp(fraction, 0.0, 1.0); }
-void VehicleTwin::SetAccelScale(double fraction) { accel_scale_ = std::clamp(fraction, 0.0, 1.0); }
-void VehicleTwin::SetTurnScale(double fraction) { turn_scale_ = std::clamp(fraction, 0.0, 1.0); }
+namespace {
+// A scale fraction in [0, 1]; NaN is 0 (std::clamp passes NaN through, and a NaN limit is no limit).
+double Fraction(double f) { return std::isnan(f) ? 0.0 : std::clamp(f, 0.0, 1.0); }
+}  // namespace
+
+void VehicleTwin::SetSpeedScale(double fraction) { speed_scale_ = Fraction(fraction); }
+void VehicleTwin::SetAccelScale(double fraction) { accel_scale_ = Fraction(fraction); }
+void VehicleTwin::SetTurnScale(double fraction) { turn_scale_ = Fraction(fraction); }
 
 void VehicleTwin::ResetIntegrators(bool left, bool right, bool yaw, bool fore_aft) {
   if (left) sensors_.left_wheel_m = 0.0;
@@ -125,6 +135,9 @@ void VehicleTwin::Step(double dt) {
     pending_.pop_front();
   }
   timed_out_ = have_command_ && static_cast<double>(now_ns_ - last_command_received_ns_) * 1e-9 > o.command_timeout_s;
+  // A timeout or disabled motors drop the last command: the firmware does not bring it back when
+  // commands resume (until the new one takes effect, the target is zero).
+  if (timed_out_ || !motors_enabled_) commanded_ = VehicleCommand{};
 
   // What the platform is asked to follow. On a timeout or with the motors off the firmware ramps
   // its target to zero; otherwise the last command, within the configured limits.

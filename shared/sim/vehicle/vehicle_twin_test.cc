@@ -142,6 +142,48 @@ TEST(VehicleTwinTest, MotorsDisabledBrakeToAStopAndIgnoreCommands) {
   EXPECT_NEAR(twin.truth().speed_mps, 0.0, 1e-9);
 }
 
+// After a timeout (or with the motors off) the last command is gone: a new command resumes from rest,
+// and until it takes effect (the latency) the vehicle does not move off towards the old one. Before, it
+// reversed towards the old -1 m/s for the latency's 50 ms (and drove off at 1 m/s after a re-enable).
+TEST(VehicleTwinTest, ACommandAfterATimeoutDoesNotBringBackTheOldOne) {
+  VehicleTwin twin(VehicleTwinOptions{});
+  DriveTwin(&twin, {-1.0, 0.0}, 0, 3000 * kMs);
+  twin.AdvanceTo(6000 * kMs);  // timed out, ramped to rest
+  ASSERT_TRUE(twin.command_timed_out());
+  ASSERT_NEAR(twin.truth().speed_mps, 0.0, 1e-9);
+  twin.Command(6000 * kMs, {0.0, 0.0});
+  for (int64_t t = 6000; t <= 6200; t += 5) {
+    twin.AdvanceTo(t * kMs);
+    EXPECT_NEAR(twin.truth().speed_mps, 0.0, 1e-9) << "t = " << t << " ms";
+  }
+
+  VehicleTwin off(VehicleTwinOptions{});
+  DriveTwin(&off, {1.0, 0.0}, 0, 2000 * kMs);
+  off.SetMotorsEnabled(false);
+  off.AdvanceTo(4000 * kMs);
+  ASSERT_NEAR(off.truth().speed_mps, 0.0, 1e-4);
+  off.SetMotorsEnabled(true);
+  off.Command(4000 * kMs, {0.0, 0.0});
+  off.AdvanceTo(4200 * kMs);
+  EXPECT_NEAR(off.truth().speed_mps, 0.0, 1e-4) << "re-enabled, it drove off on the command from before";
+}
+
+// A command or a scale that is not a number is no command and no motion (std::clamp passes NaN
+// through: it made the whole state NaN, and a NaN scale lifted the speed limit).
+TEST(VehicleTwinTest, NotANumberNeitherMovesTheVehicleNorLiftsTheLimits) {
+  VehicleTwin twin(VehicleTwinOptions{});
+  DriveTwin(&twin, {std::nan(""), std::nan("")}, 0, 1000 * kMs);
+  EXPECT_EQ(twin.truth().speed_mps, 0.0);
+  EXPECT_TRUE(std::isfinite(twin.truth().x_m) && std::isfinite(twin.truth().yaw_rad));
+  twin.SetSpeedScale(std::nan(""));
+  twin.SetAccelScale(std::nan(""));
+  twin.SetTurnScale(std::nan(""));
+  EXPECT_EQ(twin.speed_scale(), 0.0);
+  DriveTwin(&twin, {5.0, 2.0}, 1000 * kMs, 2000 * kMs);
+  EXPECT_EQ(twin.truth().speed_mps, 0.0);
+  EXPECT_EQ(twin.truth().yaw_rate_rps, 0.0);
+}
+
 // Odometry statistics: the measured wheel distances show the configured scale error and a slip
 // noise whose standard deviation grows as sqrt(distance).
 TEST(VehicleTwinStatisticsTest, OdometryErrorMatchesScaleErrorAndSlipNoise) {
