@@ -156,6 +156,62 @@ TEST(CliIntegrationTest, FeaturesReportsABadImageAndGoesOn) {
   std::filesystem::remove_all(dir);
 }
 
+// replay: an image event whose camera is not a string, or whose pose holds a null (how the JSON
+// writer records a NaN), is refused with the event named and exit 2 (before: an uncaught JSON
+// type_error, exit 1, nothing named).
+TEST(CliIntegrationTest, ReplayRefusesEventFieldsOfTheWrongType) {
+  const std::string dir = MakeTempDir("replay_types_cli");
+  std::ofstream(dir + "/recording.json")
+      << R"({"format": "idi-recording", "version": 1, "kind": "scan", "cameras": {"left": {"width": 64, "height": 64,)"
+      << R"( "params": [60, 60, 31.5, 31.5, 0, 0, 0, 0, 0]}}})"
+      << "\n";
+  const std::string pose = "[1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 1000]";
+  std::ofstream(dir + "/events.jsonl") << R"({"t_ns": 1, "type": "image", "camera": 3, "file": "images/a.png", )"
+                                       << R"("cam_from_world": )" << pose << "}\n";
+  auto r = RunCommand(kWorkcell + " replay " + dir);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("events.jsonl event 1: 'camera' is not a string"), std::string::npos) << r.err;
+
+  std::ofstream(dir + "/events.jsonl") << R"({"t_ns": 1, "type": "image", "camera": "left", "file": "images/a.png", )"
+                                       << R"("cam_from_world": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, null]})"
+                                       << "\n";
+  r = RunCommand(kWorkcell + " replay " + dir);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("events.jsonl event 1: image event without a 12-number cam_from_world"), std::string::npos)
+      << r.err;
+  std::filesystem::remove_all(dir);
+}
+
+// features --camera: a parameter file must give the intrinsics (a missing principal point was taken
+// as 319.5, 239.5 without a word), a key beside K that is not read is refused, and width comes with
+// height.
+TEST(CliIntegrationTest, FeaturesCameraFileMustBeWhole) {
+  const std::string dir = MakeTempDir("features_cam_cli");
+  {
+    std::ofstream img(dir + "/square.pgm", std::ios::binary);
+    img << "P5\n64 64\n255\n";
+    for (int y = 0; y < 64; ++y) {
+      for (int x = 0; x < 64; ++x) img.put(static_cast<char>(x >= 16 && x < 48 && y >= 16 && y < 48 ? 200 : 40));
+    }
+  }
+  std::ofstream(dir + "/no_centre.yaml") << "fx_px: 60\nfy_px: 60\nk1: -0.1\n";
+  std::ofstream(dir + "/dist_coeffs.yaml")
+      << "K: [60, 0, 31.5, 0, 60, 31.5, 0, 0, 1]\ndist_coeffs: [-0.1, 0, 0, 0, 0]\n";
+  std::ofstream(dir + "/width_only.yaml") << "K: [60, 0, 31.5, 0, 60, 31.5, 0, 0, 1]\nwidth: 64\n";
+  std::ofstream(dir + "/whole.yaml") << "fx_px: 60\nfy_px: 60\ncx_px: 31.5\ncy_px: 31.5\nk1: -0.1\n";
+  const std::pair<const char*, const char*> refused[] = {{"no_centre.yaml", "no_centre.yaml: missing cx_px"},
+                                                         {"dist_coeffs.yaml", "unknown key 'dist_coeffs'"},
+                                                         {"width_only.yaml", "width and height go together"}};
+  for (const auto& [file, message] : refused) {
+    const auto r = RunCommand(kWorkcell + " features " + dir + "/square.pgm --camera " + dir + "/" + file + " --json");
+    EXPECT_EQ(r.exit_code, 2) << file << ": " << r.err;
+    EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+  }
+  const auto r = RunCommand(kWorkcell + " features " + dir + "/square.pgm --camera " + dir + "/whole.yaml --json");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  std::filesystem::remove_all(dir);
+}
+
 TEST(CliIntegrationTest, RmpFootprint) {
   const auto r = RunCommand(kRmp + " fov --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;

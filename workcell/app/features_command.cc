@@ -47,7 +47,19 @@ Result<CameraModel> LoadCameraFile(const std::string& path, int* width, int* hei
   try {
     if (root["width"]) *width = root["width"].as<int>();
     if (root["height"]) *height = root["height"].as<int>();
+    if (static_cast<bool>(root["width"]) != static_cast<bool>(root["height"]) ||
+        (root["width"] && !(*width > 0 && *height > 0))) {
+      return ParseError(path + ": width and height go together, both positive (or neither: the image's size)");
+    }
     if (root["K"]) {
+      // A key this branch does not read (`dist_coeffs`, `k1` beside K) would be left out without a word.
+      for (const auto& kv : root) {
+        const std::string key = kv.first.as<std::string>();
+        if (key != "K" && key != "distortion" && key != "width" && key != "height" && key != "model" &&
+            key != "comment" && key != "camera") {
+          return ParseError(path + ": unknown key '" + key + "' beside K (K, distortion, width, height)");
+        }
+      }
       const auto k = root["K"].as<std::vector<double>>();
       if (k.size() != 9) {
         return ParseError(fmt::format("{}: K: expected 9 numbers (3x3 row-major), got {}", path, k.size()));
@@ -76,7 +88,12 @@ Result<CameraModel> LoadCameraFile(const std::string& path, int* width, int* hei
     } else {
       ParamFileOptions pfo;
       pfo.extra_keys = {"model", "comment", "width", "height", "statistics", "camera"};
-      pfo.require_all = false;
+      pfo.require_all = false;  // the distortion may be left out (0)
+      // ... but not the intrinsics: a default principal point would undistort about the wrong centre.
+      for (const char* key : {"fx_px", "fy_px", "cx_px", "cy_px"}) {
+        if (!root[key])
+          return ParseError(fmt::format("{}: missing {} (give K: [...] or fx_px, fy_px, cx_px, cy_px)", path, key));
+      }
       IDI_ASSIGN_OR_RETURN(const ParamSet set, ParamSetFromYaml(root, CameraParamSpecs(CameraModel{}), path, pfo));
       cam = CameraFromParamSet(set, 0, 0);
     }
@@ -92,6 +109,11 @@ Result<CameraModel> LoadCameraFile(const std::string& path, int* width, int* hei
     return InvalidArgument(fmt::format("{}: focal lengths must be positive (fx {}, fy {})", path, cam.fx(), cam.fy()));
   }
   return cam;
+}
+
+// One JSON line; bytes of a file name that are not UTF-8 are replaced (dump() would throw).
+std::string JsonLine(const nlohmann::json& j) {
+  return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 }
 
 nlohmann::json Xy(const Eigen::Vector2d& v) { return {v.x(), v.y()}; }
@@ -279,13 +301,13 @@ Status RunFeatures(const FeaturesCliOptions& o) {
         first_error = status;
       }
       if (o.json) {
-        std::cout << nlohmann::json({{"image", path}, {"error", status.message()}}).dump() << "\n" << std::flush;
+        std::cout << JsonLine(nlohmann::json({{"image", path}, {"error", status.message()}})) << "\n" << std::flush;
       }
       continue;
     }
     const FeatureResult& r = result.value();
     if (o.json) {
-      std::cout << ResultJson(path, r).dump() << "\n" << std::flush;
+      std::cout << JsonLine(ResultJson(path, r)) << "\n" << std::flush;
     } else {
       std::cout << fmt::format("{}: {} x {} px, {} lines, {} IDI points, {} curves, {:.2f} ms (noise {:.2f})\n", path,
                                r.width, r.height, r.lines.size(), r.points.size(), r.curves.size(), r.timing.total_ms,
@@ -295,7 +317,14 @@ Status RunFeatures(const FeaturesCliOptions& o) {
       const std::string stem = std::filesystem::path(path).stem().string();
       const int n = ++overlay_names[stem];
       const std::string name = (n == 1 ? stem : fmt::format("{}_{}", stem, n)) + "_features.png";
-      IDI_RETURN_IF_ERROR(WriteOverlay(o.overlay_dir, path, name, image, r, geometry));
+      // A failed overlay (a full disk, a read-only folder) is this image's error; the next images are
+      // still detected and reported.
+      const Status written = WriteOverlay(o.overlay_dir, path, name, image, r, geometry);
+      if (!written.ok()) {
+        ++failed;
+        spdlog::error("{}", written.message());
+        if (first_error.ok()) first_error = written;
+      }
     }
   }
   if (failed > 0 && o.images.size() > 1) {

@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -93,6 +94,12 @@ Result<std::vector<StructureView>> LoadViews(const std::string& path) try {
 
 Status RunReconstruct(const ReconstructOptions& o) {
   IDI_ASSIGN_OR_RETURN(const std::vector<StructureView> views, LoadViews(o.views_file));
+  if (!o.overlay_dir.empty()) {
+    // Before the work: a folder that cannot be made is known now, not after the reconstruction.
+    std::error_code ec;
+    fs::create_directories(o.overlay_dir, ec);
+    if (ec) return IoError(fmt::format("--overlay {}: cannot create the folder: {}", o.overlay_dir, ec.message()));
+  }
   spdlog::info("reconstruct: {} views from {}", views.size(), o.views_file);
   IDI_ASSIGN_OR_RETURN(const StructureResult r, ReconstructStructure(views, StructureOptions{}));
   spdlog::info("reconstruct: {} points, {} edges; features {:.1f} ms, correspondence {:.1f} ms, adjustment {:.1f} ms "
@@ -102,13 +109,18 @@ Status RunReconstruct(const ReconstructOptions& o) {
   const nlohmann::json out = StructureModelJson(r.model);
   if (!o.ply.empty()) IDI_RETURN_IF_ERROR(WriteFileAtomically(o.ply, ModelToPly(r.model)));
   if (!o.overlay_dir.empty()) {
-    std::error_code ec;
-    fs::create_directories(o.overlay_dir, ec);
+    // Views of the same file name (left/0001.png, right/0001.png) get their own overlays.
+    std::map<std::string, int> names;
     for (std::size_t v = 0; v < views.size(); ++v) {
-      const fs::path file = fs::path(o.overlay_dir) / (fs::path(views[v].name).stem().string() + "_model.png");
-      if (!cv::imwrite(file.string(), DrawModelOverlay(views[v], r.model, &r.features[v]))) {
-        return IoError(file.string() + ": cannot write the overlay");
+      const std::string stem = fs::path(views[v].name).stem().string();
+      const int n = ++names[stem];
+      const fs::path file = fs::path(o.overlay_dir) / ((n == 1 ? stem : fmt::format("{}_{}", stem, n)) + "_model.png");
+      std::vector<unsigned char> png;
+      if (!cv::imencode(".png", DrawModelOverlay(views[v], r.model, &r.features[v]), png)) {
+        return IoError(file.string() + ": cannot encode the overlay as PNG");
       }
+      IDI_RETURN_IF_ERROR(
+          WriteFileAtomically(file.string(), std::string_view(reinterpret_cast<const char*>(png.data()), png.size())));
     }
   }
   if (o.json) {

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <cmath>
 #include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -22,15 +23,32 @@ struct ReplayOptions {
 };
 
 Result<Rigid3d> PoseFromEvent(const nlohmann::json& e, const std::string& where) {
-  if (!e.contains("cam_from_world") || !e["cam_from_world"].is_array() || e["cam_from_world"].size() != 12) {
-    return ParseError(where + ": image event without a 12-number cam_from_world");
+  const auto bad = [&] { return ParseError(where + ": image event without a 12-number cam_from_world"); };
+  if (!e.contains("cam_from_world") || !e["cam_from_world"].is_array() || e["cam_from_world"].size() != 12)
+    return bad();
+  double m[12];
+  for (std::size_t i = 0; i < 12; ++i) {
+    // A NaN is written as null by the JSON writer: not a pose to reconstruct from.
+    const nlohmann::json& v = e["cam_from_world"][i];
+    if (!v.is_number() || !std::isfinite(v.get<double>())) return bad();
+    m[i] = v.get<double>();
   }
   Rigid3d t;
   for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) t.rotation(r, c) = e["cam_from_world"][static_cast<std::size_t>(4 * r + c)].get<double>();
-    t.translation(r) = e["cam_from_world"][static_cast<std::size_t>(4 * r + 3)].get<double>();
+    for (int c = 0; c < 3; ++c) t.rotation(r, c) = m[4 * r + c];
+    t.translation(r) = m[4 * r + 3];
   }
   return t;
+}
+
+// A string field of an event; `fallback` when it is absent, an error naming the event when it is not a string.
+Result<std::string> StringField(const nlohmann::json& e,
+                                const char* key,
+                                const std::string& fallback,
+                                const std::string& where) {
+  if (!e.contains(key)) return fallback;
+  if (!e[key].is_string()) return ParseError(where + ": '" + key + "' is not a string");
+  return e[key].get<std::string>();
 }
 
 Status ReplayScan(const Recording& rec, bool json) {
@@ -39,11 +57,11 @@ Status ReplayScan(const Recording& rec, bool json) {
     const nlohmann::json& e = rec.events[k];
     if (e.value("type", "") != "image") continue;
     const std::string where = fmt::format("{}/events.jsonl event {}", rec.dir, k + 1);
-    const std::string camera = e.value("camera", "");
+    IDI_ASSIGN_OR_RETURN(const std::string camera, StringField(e, "camera", "", where));
     const auto cam = rec.header.cameras.find(camera);
     if (cam == rec.header.cameras.end()) return ParseError(where + ": camera '" + camera + "' not in the header");
     StructureView v;
-    v.name = e.value("file", "");
+    IDI_ASSIGN_OR_RETURN(v.name, StringField(e, "file", "", where));
     v.camera = cam->second;
     IDI_ASSIGN_OR_RETURN(v.cam_from_world, PoseFromEvent(e, where));
     IDI_ASSIGN_OR_RETURN(v.image, LoadRecordedImage(rec, e));
@@ -95,10 +113,12 @@ struct ExportOptions {
 Status RunExport(const ExportOptions& o) {
   IDI_ASSIGN_OR_RETURN(const Recording rec, ReadRecording(o.dir));
   std::vector<RawlogFrame> frames;
-  for (const auto& e : rec.events) {
+  for (std::size_t k = 0; k < rec.events.size(); ++k) {
+    const nlohmann::json& e = rec.events[k];
     if (e.value("type", "") != "image") continue;
     RawlogFrame f;
-    f.sensor_label = e.value("camera", "camera");
+    IDI_ASSIGN_OR_RETURN(f.sensor_label,
+                         StringField(e, "camera", "camera", fmt::format("{}/events.jsonl event {}", rec.dir, k + 1)));
     f.timestamp_unix_ns = UnixTimeOf(rec.header, e.value("t_ns", int64_t{0}));
     IDI_ASSIGN_OR_RETURN(f.image, LoadRecordedImage(rec, e));
     const auto cam = rec.header.cameras.find(f.sensor_label);
