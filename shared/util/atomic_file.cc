@@ -16,6 +16,25 @@ namespace {
 
 std::string ErrnoText() { return std::strerror(errno); }
 
+// The process's umask, read without changing it (umask() would change it for every thread for a
+// moment); 022 where /proc does not say.
+mode_t CurrentUmask() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind("Umask:", 0) == 0) return static_cast<mode_t>(std::stoul(line.substr(6), nullptr, 8) & 0777);
+  }
+  return 022;
+}
+
+// The mode the file gets: the target's own when it is replaced, otherwise what creating it would
+// give (0666 less the umask: 0640 under the units' UMask=0027), not mkstemp's 0600.
+mode_t ModeFor(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode)) return st.st_mode & 07777;
+  return 0666 & ~CurrentUmask();
+}
+
 Status WriteAll(int fd, std::string_view contents, const std::string& path) {
   std::size_t done = 0;
   while (done < contents.size()) {
@@ -44,19 +63,21 @@ Status WriteFileAtomically(const std::string& path, std::string_view contents) {
   std::string tmpl = (dir / ("." + target.filename().string() + ".tmpXXXXXX")).string();
   std::vector<char> name(tmpl.begin(), tmpl.end());
   name.push_back('\0');
-  const int fd = ::mkstemp(name.data());
+  const int fd = ::mkostemp(name.data(), O_CLOEXEC);
   if (fd < 0) {
     return IoError(path + ": cannot create a temporary file: " + ErrnoText());
   }
   const std::string tmp_path(name.data());
   Status st = WriteAll(fd, contents, path);
-  if (st.ok() && ::fchmod(fd, 0644) != 0) {
+  if (st.ok() && ::fchmod(fd, ModeFor(path)) != 0) {
     st = IoError(path + ": chmod failed: " + ErrnoText());
   }
   if (st.ok() && ::fsync(fd) != 0) {
     st = IoError(path + ": fsync failed: " + ErrnoText());
   }
-  ::close(fd);
+  if (::close(fd) != 0 && st.ok()) {
+    st = IoError(path + ": close failed: " + ErrnoText());
+  }
   if (st.ok() && ::rename(tmp_path.c_str(), path.c_str()) != 0) {
     st = IoError(path + ": rename failed: " + ErrnoText());
   }

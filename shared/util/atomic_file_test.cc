@@ -1,6 +1,7 @@
 #include "shared/util/atomic_file.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <filesystem>
 
@@ -31,6 +32,21 @@ TEST_F(AtomicFileTest, WritesAndReplacesWithoutLeavingTemporaries) {
     ++files;
   }
   EXPECT_EQ(files, 1);
+}
+
+// A new file gets what creating it would give (0666 less the umask; it was always 0644, so a service
+// with UMask=0027 wrote world-readable files); a replaced file keeps its mode.
+TEST_F(AtomicFileTest, ModeFollowsTheUmaskOrTheReplacedFile) {
+  const mode_t old_mask = ::umask(027);
+  const std::string path = (dir_ / "new.yaml").string();
+  const Status written = WriteFileAtomically(path, "x\n");
+  ::umask(old_mask);
+  ASSERT_TRUE(written.ok()) << written.ToString();
+  EXPECT_EQ(fs::status(path).permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
+  fs::permissions(path, fs::perms::owner_read | fs::perms::owner_write);
+  ASSERT_TRUE(WriteFileAtomically(path, "y\n").ok());
+  EXPECT_EQ(fs::status(path).permissions() & fs::perms::all, fs::perms::owner_read | fs::perms::owner_write);
 }
 
 TEST_F(AtomicFileTest, MissingFolderIsAnErrorNamingThePath) {

@@ -32,6 +32,20 @@ TEST(StatisticsTest, NearestRankPercentile) {
   EXPECT_DOUBLE_EQ(NearestRankPercentile({}, 0.5, -1.0), -1.0);
 }
 
+// NaNs are left out (with them nth_element's order is undefined, and the median was any element), and
+// a rank q n that is whole in decimals is not pushed one up by rounding (0.07 * 100 = 7.000000000000001).
+TEST(StatisticsTest, NaNsAreLeftOutAndWholeRanksStayWhole) {
+  const double nan = std::nan("");
+  EXPECT_DOUBLE_EQ(Median({nan, 5, nan, 1, 3, nan, nan}), 3.0);
+  EXPECT_DOUBLE_EQ(Median({nan, nan}, -1.0), -1.0);
+  EXPECT_DOUBLE_EQ(NearestRankPercentile({nan, 4, 1, nan, 3, 2}, 1.0), 4.0);
+  std::vector<double> v;
+  for (int i = 1; i <= 100; ++i) v.push_back(i);
+  for (const double q : {0.07, 0.14, 0.28, 0.55, 0.56}) {
+    EXPECT_DOUBLE_EQ(NearestRankPercentile(v, q), std::round(q * 100)) << q;
+  }
+}
+
 TEST(StatisticsTest, ChiSquareQuantileIsNearTheExactValues) {
   // Exact 0.999 quantiles: 10.83 (1 dof), 18.47 (4), 34.53 (13); Wilson-Hilferty is within 4 %.
   EXPECT_NEAR(ChiSquareQuantile(1, 3.09), 10.83, 0.04 * 10.83);
