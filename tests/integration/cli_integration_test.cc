@@ -2,9 +2,11 @@
 // run), JSON on stdout, messages on stderr naming what was wrong.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "tests/support/run_command.h"
 
@@ -209,6 +211,41 @@ TEST(CliIntegrationTest, FeaturesCameraFileMustBeWhole) {
   }
   const auto r = RunCommand(kWorkcell + " features " + dir + "/square.pgm --camera " + dir + "/whole.yaml --json");
   EXPECT_EQ(r.exit_code, 0) << r.err;
+  std::filesystem::remove_all(dir);
+}
+
+// features --laser-spot: the spot of a short-exposure image (a Gaussian spot on a dark, slightly noisy
+// background) is found at its centre; an image without one says no_spot.
+TEST(CliIntegrationTest, FeaturesFindsTheLaserSpot) {
+  const std::string dir = MakeTempDir("features_spot_cli");
+  auto pgm = [](const std::string& path, bool with_spot) {
+    std::ofstream img(path, std::ios::binary);
+    img << "P5\n96 96\n255\n";
+    for (int y = 0; y < 96; ++y) {
+      for (int x = 0; x < 96; ++x) {
+        const double dx = x - 40.3, dy = y - 57.6;
+        const double v = 20.0 + ((x * 7 + y * 13) % 5 - 2) +
+                         (with_spot ? 180.0 * std::exp(-(dx * dx + dy * dy) / (2 * 1.6 * 1.6)) : 0.0);
+        img.put(static_cast<char>(static_cast<unsigned char>(std::lround(v))));
+      }
+    }
+  };
+  pgm(dir + "/spot.pgm", true);
+  pgm(dir + "/dark.pgm", false);
+  const auto r = RunCommand(kWorkcell + " features " + dir + "/spot.pgm " + dir + "/dark.pgm --laser-spot --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::istringstream lines(r.out);
+  std::string line;
+  ASSERT_TRUE(std::getline(lines, line));
+  const auto spot = nlohmann::json::parse(line).at("laser_spot");
+  EXPECT_EQ(spot.at("status"), "found") << line;
+  ASSERT_EQ(spot.at("spots").size(), 1u) << line;
+  EXPECT_NEAR(spot["spots"][0]["xy"][0].get<double>(), 40.3, 0.05) << line;
+  EXPECT_NEAR(spot["spots"][0]["xy"][1].get<double>(), 57.6, 0.05) << line;
+  ASSERT_TRUE(std::getline(lines, line));
+  EXPECT_EQ(nlohmann::json::parse(line).at("laser_spot").at("status"), "no_spot") << line;
+  const auto without = RunCommand(kWorkcell + " features " + dir + "/spot.pgm --json");
+  EXPECT_FALSE(nlohmann::json::parse(without.out).contains("laser_spot")) << "only with --laser-spot";
   std::filesystem::remove_all(dir);
 }
 

@@ -14,6 +14,7 @@
 #include <optional>
 
 #include "shared/features/features.h"
+#include "shared/features/laser_spot.h"
 #include "shared/features/pixel_geometry.h"
 #include "shared/runtime/param_file.h"
 #include "shared/util/atomic_file.h"
@@ -26,6 +27,7 @@ struct FeaturesCliOptions {
   bool json = false;
   std::string overlay_dir;
   std::string camera_file;
+  bool laser_spot = false;
 };
 
 // Camera file: either `K: [9 numbers]` with optional `distortion: [k1, k2, p1, p2, k3]` (as in the
@@ -118,6 +120,22 @@ std::string JsonLine(const nlohmann::json& j) {
 
 nlohmann::json Xy(const Eigen::Vector2d& v) { return {v.x(), v.y()}; }
 nlohmann::json Cov(const Eigen::Matrix2d& c) { return {{c(0, 0), c(0, 1)}, {c(1, 0), c(1, 1)}}; }
+
+// The laser spot of --laser-spot: the status, and every spot found (brightest first) in image pixels.
+nlohmann::json SpotJson(const LaserSpotResult& s) {
+  nlohmann::json j{
+      {"status", LaserSpotStatusName(s.status)}, {"background", s.background}, {"noise_sigma", s.noise_sigma}};
+  if (!s.message.empty()) j["message"] = s.message;
+  j["spots"] = nlohmann::json::array();
+  for (const LaserSpot& p : s.spots) {
+    j["spots"].push_back({{"xy", Xy(p.xy)},
+                          {"covariance", Cov(p.covariance)},
+                          {"peak", p.peak},
+                          {"area_px", p.area_px},
+                          {"saturated_px", p.saturated_px}});
+  }
+  return j;
+}
 
 nlohmann::json ResultJson(const std::string& image, const FeatureResult& r) {
   nlohmann::json out;
@@ -306,12 +324,37 @@ Status RunFeatures(const FeaturesCliOptions& o) {
       continue;
     }
     const FeatureResult& r = result.value();
+    std::optional<LaserSpotResult> spot;
+    if (o.laser_spot) {
+      // The image was checked above (grey, not empty), so only a broken finder fails here.
+      Result<LaserSpotResult> found = FindLaserSpot(image);
+      if (found.ok()) {
+        spot = std::move(found).value();
+      } else {
+        spdlog::error("{}: laser spot: {}", path, found.status().message());
+      }
+    }
     if (o.json) {
-      std::cout << JsonLine(ResultJson(path, r)) << "\n" << std::flush;
+      nlohmann::json j = ResultJson(path, r);
+      if (spot) j["laser_spot"] = SpotJson(*spot);
+      std::cout << JsonLine(j) << "\n" << std::flush;
     } else {
       std::cout << fmt::format("{}: {} x {} px, {} lines, {} IDI points, {} curves, {:.2f} ms (noise {:.2f})\n", path,
                                r.width, r.height, r.lines.size(), r.points.size(), r.curves.size(), r.timing.total_ms,
                                r.noise_sigma);
+      if (spot) {
+        std::cout << fmt::format("  laser spot: {}", LaserSpotStatusName(spot->status));
+        if (!spot->spots.empty()) {
+          std::cout << fmt::format(" at ({:.3f}, {:.3f}) px, peak {:.0f} above {:.0f}, {} px",
+                                   spot->spots[0].xy.x(),
+                                   spot->spots[0].xy.y(),
+                                   spot->spots[0].peak,
+                                   spot->background,
+                                   spot->spots[0].area_px);
+        }
+        if (!spot->message.empty()) std::cout << " (" << spot->message << ")";
+        std::cout << "\n";
+      }
     }
     if (!o.overlay_dir.empty()) {
       const std::string stem = std::filesystem::path(path).stem().string();
@@ -352,6 +395,11 @@ void AddFeaturesCommand(CliApp& cli) {
                   "intrinsics YAML (K: [9], distortion: [k1, k2, p1, p2, k3], optional width/height; or fx_px, "
                   "fy_px, cx_px, cy_px, k1.. keys): lines are fitted in undistorted pixel coordinates")
       ->check(CLI::ExistingFile);
+  cmd->add_flag("--laser-spot",
+                o->laser_spot,
+                "also find the laser spot (a short-exposure image, §6.4.3): laser_spot: {status: found | no_spot | "
+                "several_spots | saturated, spots: [{xy, covariance, peak, area_px, saturated_px}]}, in image pixels "
+                "(not undistorted)");
 }
 
 }  // namespace idi::workcell
