@@ -107,6 +107,10 @@ spot, reconstructs objects from the straight lines and intersection
 points seen from several views, and picks them. It runs as a systemd
 service on the workcell PC."
 )
+  # The USB serial drivers at boot: the unit's DeviceAllow=char-ttyUSB/char-ttyACM find their majors in
+  # /proc/devices when it starts, and an adapter enumerated later would be refused until a restart.
+  install(FILES ${PROJECT_SOURCE_DIR}/systemd/idi-workcell-modules.conf DESTINATION /usr/lib/modules-load.d
+          RENAME idi-workcell.conf COMPONENT workcell)
   list(APPEND idi_components workcell)
 endif()
 

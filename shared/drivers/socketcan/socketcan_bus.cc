@@ -112,7 +112,7 @@ Status SocketCanBus::OpenSocket() {
     const int err = errno;
     CloseSocket();
     return NotFound("SocketCAN: no network interface '" + ifname + "' (" + ErrnoName(err) +
-                    "); create it with e.g. `ip link set " + ifname + " up type can bitrate 500000`");
+                    "); create it with e.g. `ip link set " + ifname + " up type can bitrate 500000 restart-ms 100`");
   }
   auto set = [&](int level, int option, const void* value, socklen_t len, const char* what) -> Status {
     if (::setsockopt(fd_, level, option, value, len) != 0) {
@@ -277,7 +277,17 @@ Result<std::optional<hal::CanFrame>> SocketCanBus::Receive(std::chrono::millisec
 Status SocketCanBus::Restart() {
   const std::string& ifname = options_.interface;
   const int nl = ::socket(AF_NETLINK, SOCK_RAW | SOCK_CLOEXEC, NETLINK_ROUTE);
-  if (nl < 0) return IoError("SocketCAN " + ifname + ": rtnetlink socket failed: " + ErrnoName(errno));
+  if (nl < 0) {
+    const int err = errno;
+    // Under idi-rmp.service (RestrictAddressFamilies=AF_UNIX AF_CAN, no capabilities) rtnetlink is not
+    // reachable at all: the kernel must restart the controller itself.
+    if (err == EAFNOSUPPORT || err == EPERM || err == EACCES) {
+      return FailedPrecondition("SocketCAN " + ifname + ": cannot ask for a restart here (" + ErrnoName(err) +
+                                "); configure the interface with restart-ms (`ip link set " + ifname +
+                                " type can restart-ms 100`) so that the kernel restarts it");
+    }
+    return IoError("SocketCAN " + ifname + ": rtnetlink socket failed: " + ErrnoName(err));
+  }
   // RTM_NEWLINK { ifinfomsg, IFLA_LINKINFO { IFLA_INFO_KIND "can", IFLA_INFO_DATA { IFLA_CAN_RESTART 1 } } }
   std::vector<char> buf(NLMSG_LENGTH(sizeof(ifinfomsg)), 0);
   nlmsghdr* hdr = reinterpret_cast<nlmsghdr*>(buf.data());
@@ -313,7 +323,9 @@ Status SocketCanBus::Restart() {
       const nlmsghdr* r = reinterpret_cast<const nlmsghdr*>(reply);
       const int err = r->nlmsg_type == NLMSG_ERROR ? -reinterpret_cast<const nlmsgerr*>(NLMSG_DATA(r))->error : 0;
       if (err == EPERM || err == EACCES) {
-        result = FailedPrecondition("SocketCAN " + ifname + ": restarting the controller needs CAP_NET_ADMIN: " + ErrnoName(err));
+        result = FailedPrecondition("SocketCAN " + ifname + ": restarting the controller needs CAP_NET_ADMIN (" +
+                                    ErrnoName(err) +
+                                    "); configure the interface with restart-ms so that the kernel restarts it");
       } else if (err == EOPNOTSUPP || err == EINVAL) {
         result = DeviceError("SocketCAN " + ifname + ": the interface cannot be restarted (not a CAN controller, e.g. vcan): " +
                              ErrnoName(err));
