@@ -94,13 +94,31 @@ class SimDeviceSet final : public DeviceSet {
 
 int64_t NowUnix() { return static_cast<int64_t>(std::time(nullptr)); }
 
-// Commits `file` as calibration item `item` and returns the report with the new version.
-Result<nlohmann::json> CommitItem(JobContext& ctx, const std::string& item, const std::string& file,
-                                  nlohmann::json report) {
-  IDI_ASSIGN_OR_RETURN(const std::string contents, ReadFile(file));
-  IDI_ASSIGN_OR_RETURN(const CalibrationVersion v, ctx.calibration->Commit({{item, contents}}, NowUnix()));
+// Commits `file` as calibration item `item`, with `also` (item -> file) made by the same job, and
+// returns the report with the new version. A new robot calibration drops the rail's: the rail was
+// solved with the old one, and the arms and the rail in use must belong together (the service then
+// finds the rail missing and queues it).
+Result<nlohmann::json> CommitItem(JobContext& ctx,
+                                  const std::string& item,
+                                  const std::string& file,
+                                  nlohmann::json report,
+                                  const std::map<std::string, std::string>& also = {}) {
+  std::map<std::string, std::string> updates;
+  IDI_ASSIGN_OR_RETURN(updates[item], ReadFile(file));
+  for (const auto& [other, path] : also) {
+    IDI_ASSIGN_OR_RETURN(updates[other], ReadFile(path));
+  }
+  std::vector<std::string> drop;
+  if (updates.count("rail") == 0 && (updates.count("robot1") != 0 || updates.count("robot2") != 0))
+    drop.push_back("rail");
+  IDI_ASSIGN_OR_RETURN(const CalibrationVersion v, ctx.calibration->Commit(updates, NowUnix(), drop));
   report["calibration_version"] = v.number;
   report["item"] = item;
+  if (!also.empty()) {
+    report["also_committed"] = nlohmann::json::array();
+    for (const auto& [other, path] : also) report["also_committed"].push_back(other);
+  }
+  if (!drop.empty()) report["dropped"] = drop;
   return report;
 }
 
@@ -190,7 +208,11 @@ JobSpec RailJob(unsigned seed) {
     IDI_ASSIGN_OR_RETURN(nlohmann::json report, ReadReport(o.report));
     report["robot1"] = o.robot1;
     report["robot2"] = o.robot2;
-    return CommitItem(ctx, "rail", o.out, std::move(report));
+    // Arms this job calibrated itself (none were committed) go in with the rail solved with them.
+    std::map<std::string, std::string> also;
+    if (!r1.ok()) also["robot1"] = o.robot1;
+    if (!r2.ok()) also["robot2"] = o.robot2;
+    return CommitItem(ctx, "rail", o.out, std::move(report), also);
   };
   return j;
 }

@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "shared/util/atomic_file.h"
+#include "workcell/app/scan_command.h"
 #include "workcell/devices/ptu/ptu_emulator.h"
 #include "workcell/devices/staubli/val3_emulator.h"
 
@@ -129,6 +130,51 @@ TEST_F(CellTest, CalibrationJobsCommitVersionsTheRailJobUsesTheRobotsInUse) {
     EXPECT_GT(text->size(), 100u) << item;
   }
   EXPECT_FALSE(progress_.empty());
+  // A new calibration of robot 1 makes the rail's stale (it was solved with the old robot 1): the new
+  // version leaves it out, and keeps the rest. Before, the old rail went on with the new arm.
+  const auto again = RunJob(*cell, store, "calibrate-robot1", {{"readings", 200}});
+  ASSERT_TRUE(again.ok()) << again.status().ToString();
+  EXPECT_EQ(again->at("dropped"), nlohmann::json::array({"rail"})) << again->dump();
+  current = store.Current();
+  ASSERT_TRUE(current.ok() && current->has_value());
+  EXPECT_EQ((*current)->items.count("rail"), 0u);
+  for (const char* item : {"robot1", "robot2", "ptu"}) EXPECT_EQ((*current)->items.count(item), 1u) << item;
+}
+
+// A rail job without committed robots calibrates them in its own folder: they are committed with the
+// rail solved with them (before, only the rail was, and the robots in use later were others).
+TEST_F(CellTest, ARailJobWithoutCommittedRobotsCommitsTheRobotsItMade) {
+  auto cell = MakeCell(SimConfig(dir_));
+  ASSERT_TRUE(cell.ok());
+  CalibrationStore store(dir_.string());
+  ASSERT_TRUE(store.Open().ok());
+  const auto rail = RunJob(*cell, store, "calibrate-rail", {{"readings", 100}});
+  ASSERT_TRUE(rail.ok()) << rail.status().ToString();
+  EXPECT_EQ(rail->at("also_committed"), nlohmann::json::array({"robot1", "robot2"})) << rail->dump();
+  auto current = store.Current();
+  ASSERT_TRUE(current.ok() && current->has_value());
+  EXPECT_EQ((*current)->number, 1);
+  for (const char* item : {"robot1", "robot2", "rail"}) EXPECT_EQ((*current)->items.count(item), 1u) << item;
+}
+
+// scan --sim keeps its calibration in a folder that says which twin seed made it: another seed's files
+// are another cell's calibration and are refused (before, `scan --seed 2` picked with seed 1's arms).
+TEST_F(CellTest, SimCalibrationOfAnotherTwinSeedIsRefused) {
+  const fs::path cal = dir_ / "calibration";
+  fs::create_directories(cal);
+  for (const char* f : {"robot1.yaml", "robot2.yaml", "rail.yaml", "ptu.yaml"}) std::ofstream(cal / f) << "x: 1\n";
+  // Files without the seed are taken as given (a calibration from elsewhere).
+  EXPECT_TRUE(EnsureSimCalibration(cal.string(), 2).ok());
+  EXPECT_FALSE(fs::exists(cal / "twin.json"));
+  std::ofstream(cal / "twin.json") << "{\"seed\": 1}\n";
+  EXPECT_TRUE(EnsureSimCalibration(cal.string(), 1).ok());
+  const auto other = EnsureSimCalibration(cal.string(), 2);
+  ASSERT_FALSE(other.ok());
+  EXPECT_EQ(other.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(other.status().message().find("made in the twin of seed 1, not 2"), std::string::npos)
+      << other.status().ToString();
+  std::ofstream(cal / "twin.json") << "{\"seed\": \"one\"}\n";
+  EXPECT_EQ(EnsureSimCalibration(cal.string(), 1).status().code(), StatusCode::kParseError);
 }
 
 TEST_F(CellTest, BadJobArgumentsAreRefusedNamingTheField) {

@@ -90,6 +90,31 @@ Result<CalibrationFiles> EnsureSimCalibration(const std::string& dir, unsigned s
   if (ec) return IoError(dir + ": cannot create the calibration folder: " + ec.message());
   CalibrationFiles f{(fs::path(dir) / "robot1.yaml").string(), (fs::path(dir) / "robot2.yaml").string(),
                      (fs::path(dir) / "rail.yaml").string(), (fs::path(dir) / "ptu.yaml").string()};
+  // The twin's seed makes its arms, rail and head: files made for another seed are another cell's
+  // calibration. The folder says which seed made its files (twin.json); files without it are taken as
+  // given (a calibration from elsewhere), with a warning.
+  const std::string marker = (fs::path(dir) / "twin.json").string();
+  const bool any = fs::exists(f.robot1) || fs::exists(f.robot2) || fs::exists(f.rail) || fs::exists(f.ptu);
+  if (fs::exists(marker)) {
+    IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(marker));
+    const nlohmann::json m = nlohmann::json::parse(text, nullptr, false);
+    if (m.is_discarded() || !m.is_object() || !m.contains("seed") || !m["seed"].is_number_unsigned()) {
+      return ParseError(marker + ": expected {\"seed\": N}");
+    }
+    if (m["seed"].get<uint64_t>() != seed) {
+      return InvalidArgument(
+          fmt::format("{}: the calibration there was made in the twin of seed {}, not {}; give "
+                      "another --out or --calibration folder",
+                      dir,
+                      m["seed"].get<uint64_t>(),
+                      seed));
+    }
+  } else if (any) {
+    spdlog::warn("scan: {} does not say which twin seed made its calibration (no twin.json); using its files as given",
+                 dir);
+  } else {
+    IDI_RETURN_IF_ERROR(WriteFileAtomically(marker, nlohmann::json{{"seed", seed}}.dump() + "\n"));
+  }
   for (int arm = 1; arm <= 2; ++arm) {
     const std::string& out = arm == 1 ? f.robot1 : f.robot2;
     if (fs::exists(out)) continue;

@@ -73,7 +73,8 @@ Result<std::string> CalibrationStore::CurrentItemPath(const std::string& item) c
 }
 
 Result<CalibrationVersion> CalibrationStore::Commit(const std::map<std::string, std::string>& updates,
-                                                    int64_t now_unix_s) {
+                                                    int64_t now_unix_s,
+                                                    const std::vector<std::string>& drop) {
   IDI_ASSIGN_OR_RETURN(const auto current, Current());
   CalibrationVersion next;
   // After every version there is, not only after the current one: a commit killed between its folder's
@@ -99,7 +100,7 @@ Result<CalibrationVersion> CalibrationStore::Commit(const std::map<std::string, 
   // Carry over the items not being replaced.
   if (current) {
     for (const auto& [item, file] : current->items) {
-      if (updates.count(item) != 0) continue;
+      if (updates.count(item) != 0 || std::find(drop.begin(), drop.end(), item) != drop.end()) continue;
       IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile((fs::path(current->dir) / file).string()));
       IDI_RETURN_IF_ERROR(WriteFileAtomically((tmp / file).string(), text));
       next.items[item] = file;

@@ -12,6 +12,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "shared/util/status.h"
 
@@ -35,8 +36,11 @@ class CalibrationStore {
   // Path of an item in the current version; NotFound when absent.
   Result<std::string> CurrentItemPath(const std::string& item) const;
   // Makes a new current version holding the current items plus `updates` (item -> file contents;
-  // file name <item>.yaml). Returns the new version.
-  Result<CalibrationVersion> Commit(const std::map<std::string, std::string>& updates, int64_t now_unix_s);
+  // file name <item>.yaml), less the items in `drop` (ones the updates make stale). Returns the new
+  // version.
+  Result<CalibrationVersion> Commit(const std::map<std::string, std::string>& updates,
+                                    int64_t now_unix_s,
+                                    const std::vector<std::string>& drop = {});
 
   const std::string& root() const { return root_; }
 
