@@ -93,6 +93,20 @@ Status WriteFileAtomically(const std::string& path, std::string_view contents) {
   return Status::Ok();
 }
 
+Status CheckOutputFile(const std::string& path, const std::string& what) {
+  namespace fs = std::filesystem;
+  if (path.empty()) return Status::Ok();
+  const fs::path target(path);
+  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  std::error_code ec;
+  if (fs::is_directory(target, ec)) return InvalidArgument(what + " " + path + ": is a folder, expected a file name");
+  if (!fs::is_directory(dir, ec)) return NotFound(what + " " + path + ": folder " + dir.string() + " does not exist");
+  if (::access(dir.c_str(), W_OK | X_OK) != 0) {
+    return IoError(what + " " + path + ": cannot write in " + dir.string() + ": " + ErrnoText());
+  }
+  return Status::Ok();
+}
+
 Result<std::string> ReadFile(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) {

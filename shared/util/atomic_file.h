@@ -11,6 +11,11 @@ namespace idi {
 
 Status WriteFileAtomically(const std::string& path, std::string_view contents);
 
+// Whether WriteFileAtomically(path) can succeed, checked before a long run rather than after it: the
+// folder exists and may be written, and `path` is not a folder. `what` (an option, e.g. "--out") starts
+// the message. Empty paths (an output not asked for) are fine.
+Status CheckOutputFile(const std::string& path, const std::string& what);
+
 // Reads a whole file; NotFound if it does not exist, IoError if it cannot be read.
 Result<std::string> ReadFile(const std::string& path);
 

@@ -49,6 +49,17 @@ TEST_F(AtomicFileTest, ModeFollowsTheUmaskOrTheReplacedFile) {
   EXPECT_EQ(fs::status(path).permissions() & fs::perms::all, fs::perms::owner_read | fs::perms::owner_write);
 }
 
+TEST_F(AtomicFileTest, CheckOutputFileBeforeALongRun) {
+  EXPECT_TRUE(CheckOutputFile((dir_ / "out.yaml").string(), "--out").ok());
+  EXPECT_TRUE(CheckOutputFile("", "--report").ok()) << "an output not asked for";
+  const Status folder = CheckOutputFile(dir_.string(), "--out");
+  EXPECT_EQ(folder.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(folder.message().find("--out " + dir_.string() + ": is a folder"), std::string::npos) << folder.ToString();
+  const Status missing = CheckOutputFile((dir_ / "no" / "out.yaml").string(), "--out");
+  EXPECT_EQ(missing.code(), StatusCode::kNotFound);
+  EXPECT_NE(missing.message().find("does not exist"), std::string::npos) << missing.ToString();
+}
+
 TEST_F(AtomicFileTest, MissingFolderIsAnErrorNamingThePath) {
   const std::string path = (dir_ / "no_such_dir" / "x.yaml").string();
   const Status st = WriteFileAtomically(path, "x");

@@ -102,6 +102,23 @@ TEST(CliIntegrationTest, CalibrateRefusesBadNoiseAndDistance) {
 
 // features --camera: a K that is not [fx, 0, cx, 0, fy, cy, 0, 0, 1] row-major (here transposed, which
 // would put the principal point at (0, 0)) is refused with the file named; the same K in order is used.
+// A calibration's outputs are checked before its acquisition and solve: a folder that does not exist,
+// or a folder given as the file, is known at once (before, after minutes of work).
+TEST(CliIntegrationTest, CalibrationOutputsAreCheckedFirst) {
+  const std::string dir = MakeTempDir("calibrate_out_cli");
+  for (const std::string& args : {"calibrate robot --sim --out " + dir + "/no/such/robot1.yaml",
+                                  "calibrate robot --sim --out " + dir,
+                                  "calibrate robot --sim --out " + dir + "/r.yaml --report " + dir + "/none/r.json",
+                                  "calibrate ptu --sim --out " + dir + "/none/ptu.yaml"}) {
+    const auto r = RunCommand(kWorkcell + " " + args);
+    EXPECT_EQ(r.exit_code, 2) << args << ": " << r.err;
+    EXPECT_TRUE(r.err.find("does not exist") != std::string::npos || r.err.find("is a folder") != std::string::npos)
+        << r.err;
+    EXPECT_EQ(r.err.find("acquir"), std::string::npos) << "no acquisition before the check: " << r.err;
+  }
+  std::filesystem::remove_all(dir);
+}
+
 TEST(CliIntegrationTest, FeaturesRefusesATransposedK) {
   const std::string dir = MakeTempDir("features_k_cli");
   {

@@ -12,6 +12,7 @@
 #include "shared/calib/evaluation.h"
 #include "shared/plot/plot.h"
 #include "shared/sim/workcell/workcell_twin.h"
+#include "shared/util/atomic_file.h"
 #include "workcell/procedures/calibration_files.h"
 #include "workcell/procedures/calibration_procedures.h"
 
@@ -188,7 +189,28 @@ nlohmann::json RobotReport(const calib::RobotCalibrationResult& r, const calib::
 
 }  // namespace
 
+// The outputs of a calibration are checked before its acquisition and solve (minutes), not after.
+Status CheckOutputs(const std::vector<std::pair<std::string, std::string>>& files,
+                    const std::string& plots,
+                    const std::string& command) {
+  for (const auto& [path, option] : files) IDI_RETURN_IF_ERROR(CheckOutputFile(path, command + ": " + option));
+  if (!plots.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(plots, ec);
+    if (ec || !std::filesystem::is_directory(plots)) {
+      return IoError(command + ": --plots " + plots + ": cannot create the folder" + (ec ? ": " + ec.message() : ""));
+    }
+  }
+  return Status::Ok();
+}
+
 Status RunCalibrateRobot(const RobotCommandOptions& o) {
+  IDI_RETURN_IF_ERROR(CheckOutputs({{o.out, "--out"},
+                                    {o.report, "--report"},
+                                    {o.sim ? o.observations : "", "--observations"},
+                                    {o.sim ? o.validate : "", "--validate"}},
+                                   o.plots,
+                                   "calibrate robot"));
   IDI_RETURN_IF_ERROR(CheckSigma(o.spot_sigma_mm, "calibrate robot: --spot-sigma-mm"));
   IDI_RETURN_IF_ERROR(CheckSigma(o.distance_sigma_mm, "calibrate robot: --distance-sigma-mm"));
   // 0 (not given): the twin's 1000 mm, or an error below for observations.
@@ -350,6 +372,10 @@ Result<calib::ArmModel> ArmForRtu(const std::string& file, bool sim, sim::Workce
 }  // namespace
 
 Status RunCalibrateRtu(const RtuCommandOptions& o) {
+  IDI_RETURN_IF_ERROR(
+      CheckOutputs({{o.out, "--out"}, {o.report, "--report"}, {o.sim ? o.observations : "", "--observations"}},
+                   o.plots,
+                   "calibrate rtu"));
   IDI_RETURN_IF_ERROR(CheckSigma(o.spot_sigma_mm, "calibrate rtu: --spot-sigma-mm"));
   IDI_RETURN_IF_ERROR(CheckSigma(o.rail_sigma_mm, "calibrate rtu: --rail-sigma-mm"));
   std::unique_ptr<sim::WorkcellTwin> twin;

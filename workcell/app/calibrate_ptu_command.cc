@@ -7,6 +7,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
+#include "shared/util/atomic_file.h"
 #include "workcell/procedures/calibration_files.h"
 #include "workcell/procedures/ptu_files.h"
 #include "workcell/procedures/ptu_procedure.h"
@@ -135,6 +136,10 @@ Status RunInTwin(const CalibratePtuOptions& o) {
 
 Status RunCalibratePtu(const CalibratePtuOptions& o) {
   if (o.out.empty()) return InvalidArgument("calibrate ptu: --out is required");
+  // The outputs are checked before the acquisition and solve, not after.
+  IDI_RETURN_IF_ERROR(CheckOutputFile(o.out, "calibrate ptu: --out"));
+  IDI_RETURN_IF_ERROR(CheckOutputFile(o.report, "calibrate ptu: --report"));
+  if (o.sim) IDI_RETURN_IF_ERROR(CheckOutputFile(o.observations, "calibrate ptu: --observations"));
   return o.sim ? RunInTwin(o) : RunFromFiles(o);
 }
 
