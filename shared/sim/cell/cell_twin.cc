@@ -20,8 +20,9 @@ class CellTwin::Camera final : public hal::CameraDevice {
                              std::to_string(c.height) + " frames, not " + std::to_string(settings.width) + "x" +
                              std::to_string(settings.height));
     }
-    if (!(settings.exposure_us >= 0) || !(settings.gain_db >= 0)) {
-      return InvalidArgument(name() + ": exposure and gain must not be negative");
+    if (!(settings.exposure_us >= 0 && std::isfinite(settings.exposure_us)) ||
+        !(settings.gain_db >= 0 && settings.gain_db <= 60)) {
+      return InvalidArgument(name() + ": exposure must be a finite time >= 0, gain in [0, 60] dB");
     }
     gray_ = settings.gray;
     exposure_us_ = settings.exposure_us > 0 ? settings.exposure_us : twin_->options_.nominal_exposure_us;
@@ -244,9 +245,15 @@ Status CellTwinOptions::Check() const {
       !(table.top_centre_world.z() > workcell.floor_height_mm + table.thickness_mm)) {
     return InvalidArgument("cell twin: the table needs a positive size and its top above the floor");
   }
-  if (!(nominal_exposure_us > 0) || !(frame_period_s > 0) || clutter_objects < 0 || !(laser_spot_sigma_mm > 0) ||
-      !(laser_spot_peak > 0) || !(collision_tolerance_mm >= 0)) {
-    return InvalidArgument("cell twin: exposure, frame period, laser spot must be positive, clutter >= 0");
+  // Finite too: an infinite exposure gave black frames, an infinite frame period sent the clock to the
+  // end of time, an infinite collision tolerance turned collisions off.
+  const auto positive = [](double v) { return v > 0 && std::isfinite(v); };
+  if (!positive(nominal_exposure_us) || !positive(frame_period_s) || clutter_objects < 0 ||
+      !positive(laser_spot_sigma_mm) || !positive(laser_spot_peak) ||
+      !(collision_tolerance_mm >= 0 && std::isfinite(collision_tolerance_mm))) {
+    return InvalidArgument(
+        "cell twin: exposure, frame period, laser spot must be positive and finite, clutter >= 0, collision "
+        "tolerance finite >= 0");
   }
   return Status::Ok();
 }
@@ -255,7 +262,8 @@ CellTwin::CellTwin(const CellTwinOptions& options) : options_(options) {
   const Status ok = options_.Check();
   IDI_CHECK(ok.ok(), ok.ToString());
   WorkcellTwinOptions w = options_.workcell;
-  w.seed = static_cast<unsigned>(options_.seed);
+  // Both halves of the 64-bit seed (seeds 1 and 2^32 + 1 made the same arms before).
+  w.seed = static_cast<unsigned>(options_.seed ^ (options_.seed >> 32));
   workcell_ = std::make_unique<WorkcellTwin>(w);
   cameras_[0] = std::make_unique<Camera>(this, BiclopsSide::kLeft);
   cameras_[1] = std::make_unique<Camera>(this, BiclopsSide::kRight);
@@ -431,7 +439,11 @@ void CellTwin::CheckHandPath(const Joints& from, const Joints& to) {
   }
   double largest = 0;
   for (std::size_t i = 0; i < from.size(); ++i) largest = std::max(largest, std::abs(to[i] - from[i]));
-  const int steps = std::clamp(static_cast<int>(std::ceil(largest / DegToRad(0.5))), 1, 120);
+  // 0.5 deg steps of the joint that moves most, for any move (a cap of 120 steps made a 180 deg swing
+  // 1.5 deg steps, 40 mm at the hand: objects could slip between them).
+  const int steps = std::isfinite(largest)
+                        ? std::clamp(static_cast<int>(std::min(std::ceil(largest / DegToRad(0.5)), 1440.0)), 1, 1440)
+                        : 1;
   std::vector<int> hit;
   for (int s = 1; s <= steps; ++s) {
     Joints q;

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include "shared/kinematics/aiming.h"
 #include "shared/util/units.h"
 
@@ -111,6 +113,32 @@ Status AimHeadAtTable(CellTwin& twin, const Vec3d& table_top) {
   IDI_ASSIGN_OR_RETURN(const IkSummary ik,
                        SolveFlangePose(twin.workcell().true_robot(0), start, base_from_tcf, Rx130JointLimits()));
   return twin.arm(0).MoveJoints(ik.q, {});
+}
+
+// Options and camera settings must be finite: an infinite exposure gave black frames, an infinite frame
+// period sent the clock to the end of time, an infinite collision tolerance turned collisions off.
+TEST(CellTwinTest, InfiniteOptionsAndSettingsAreRefused) {
+  EXPECT_TRUE(CellTwinOptions{}.Check().ok());
+  const double inf = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < 4; ++k) {
+    CellTwinOptions o;
+    (k == 0   ? o.nominal_exposure_us
+     : k == 1 ? o.frame_period_s
+     : k == 2 ? o.collision_tolerance_mm
+              : o.laser_spot_peak) = inf;
+    EXPECT_FALSE(o.Check().ok()) << k;
+  }
+  Rig rig;
+  hal::CameraSettings s;
+  s.width = rig.twin.options().head[0].camera.width;
+  s.height = rig.twin.options().head[0].camera.height;
+  s.exposure_us = inf;
+  EXPECT_EQ(rig.twin.camera(BiclopsSide::kLeft).Start(s).code(), StatusCode::kInvalidArgument);
+  s.exposure_us = 0;
+  s.gain_db = inf;
+  EXPECT_EQ(rig.twin.camera(BiclopsSide::kLeft).Start(s).code(), StatusCode::kInvalidArgument);
+  s.gain_db = 0;
+  EXPECT_TRUE(rig.twin.camera(BiclopsSide::kLeft).Start(s).ok());
 }
 
 TEST(CellTwinTest, CamerasSeeTheObjectThroughTheTrueChainAndFollowThePtu) {
