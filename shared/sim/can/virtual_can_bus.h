@@ -124,8 +124,6 @@ class VirtualCanBus {
   // until RestartEndpoint() (a manual restart, like `ip link set canX type can restart`).
   void InjectBusOff(VirtualCanEndpoint* endpoint, int64_t duration_ns = -1);
   void RestartEndpoint(VirtualCanEndpoint* endpoint);
-  void set_drop_probability(double p) { options_.drop_probability = p; }
-  void set_garbage_probability(double p) { options_.garbage_probability = p; }
 
   // Bits a frame occupies on the wire (with worst-case stuffing and the inter-frame space).
   static int FrameBits(const hal::CanFrame& frame);

@@ -205,7 +205,12 @@ void VehicleTwin::Step(double dt) {
 
   // Balance mode leans into the acceleration (an inverted pendulum keeps its centre of mass over
   // the wheels' contact point while accelerating, §3.7).
-  const double pitch_clean = balance_mode_ ? std::atan2(truth_.accel_mps2, kGravityMps2) : 0.0;
+  // The platform's pitch follows that lean with a first-order lag of kPitchLagS (its balance loop): the
+  // lean is a step wherever the acceleration is, and the difference of steps over a step of a few us
+  // (AdvanceTo to a frame's time) gave pitch rates of 1e5 rad/s.
+  constexpr double kPitchLagS = 0.1;
+  const double lean = balance_mode_ ? std::atan2(truth_.accel_mps2, kGravityMps2) : 0.0;
+  const double pitch_clean = pitch_clean_rad_ + (lean - pitch_clean_rad_) * std::min(1.0, dt / kPitchLagS);
   const double pitch_rate_clean = (pitch_clean - pitch_clean_rad_) / dt;
   pitch_clean_rad_ = pitch_clean;
   sensors_.pitch_rad = pitch_clean + o.tilt_noise_rad * gauss_(rng_);
