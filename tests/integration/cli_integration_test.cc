@@ -77,7 +77,20 @@ TEST(CliIntegrationTest, RobotCalibrationFeedsKinematics) {
   auto r = RunCommand(kWorkcell + " calibrate robot --sim --readings 200 --out " + path);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   r = RunCommand(kWorkcell + " kinematics --robot " + path + " --joints-deg 0,-90,90,0,0,0 --json");
-  EXPECT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  // The calibrated laser of that file is used (before: the nominal one, without a word), and the same
+  // file is a valid --laser (before: refused for its arm keys).
+  const auto calibrated = nlohmann::json::parse(r.out);
+  EXPECT_EQ(calibrated.at("laser"), path);
+  r = RunCommand(kWorkcell + " kinematics --joints-deg 0,-90,90,0,0,0 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto nominal = nlohmann::json::parse(r.out);
+  EXPECT_EQ(nominal.at("laser"), "nominal");
+  EXPECT_NE(calibrated.at("laser_direction"), nominal.at("laser_direction"));
+  r = RunCommand(kWorkcell + " kinematics --robot " + path + " --laser " + path +
+                 " --joints-deg 0,-90,90,0,0,0 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out).at("laser_direction"), calibrated.at("laser_direction"));
   std::filesystem::remove_all(dir);
 }
 

@@ -51,8 +51,38 @@ Status RunKinematics(const KinematicsOptions& o) {
                       "correlation"};
     IDI_ASSIGN_OR_RETURN(robot, LoadParamFile(o.robot_file, Rx130ParamSpecs(), pfo));
   }
+  // The laser: --laser, else the calibrated laser of a `calibrate robot` file given as --robot (it holds
+  // both), else nominal. Either file may be a `calibrate robot` output (its arm keys are skipped).
+  std::string laser_source = "nominal";
+  ParamFileOptions lfo;
+  lfo.extra_keys = {"model",
+                    "comment",
+                    "laser",
+                    "calibration",
+                    "statistics",
+                    "method",
+                    "distance_mm",
+                    "point_x_mm",
+                    "point_y_mm",
+                    "point_z_mm",
+                    "phi_l_deg",
+                    "phi_m_deg",
+                    "correlation"};
+  for (const ParamSpec& spec : Rx130ParamSpecs()) lfo.extra_keys.push_back(spec.Key());
   if (!o.laser_file.empty()) {
-    IDI_ASSIGN_OR_RETURN(laser, LoadParamFile(o.laser_file, LaserParamSpecs()));
+    IDI_ASSIGN_OR_RETURN(laser, LoadParamFile(o.laser_file, LaserParamSpecs(), lfo));
+    laser_source = o.laser_file;
+  } else if (!o.robot_file.empty()) {
+    YAML::Node root;
+    try {
+      root = YAML::LoadFile(o.robot_file);
+    } catch (const YAML::Exception&) {
+      root = YAML::Node();  // read above already; cannot fail differently here
+    }
+    if (root.IsMap() && root["theta_x_deg"]) {
+      IDI_ASSIGN_OR_RETURN(laser, LoadParamFile(o.robot_file, LaserParamSpecs(), lfo));
+      laser_source = o.robot_file;
+    }
   }
   IDI_ASSIGN_OR_RETURN(const std::vector<double> deg, ParseNumberList(o.joints_deg, 6, "--joints-deg"));
   const Joints q = JointsFromDeg({deg[0], deg[1], deg[2], deg[3], deg[4], deg[5]});
@@ -68,6 +98,7 @@ Status RunKinematics(const KinematicsOptions& o) {
 
   nlohmann::json out;
   out["robot"] = o.robot_file.empty() ? "nominal (Table 4.1)" : o.robot_file;
+  out["laser"] = laser_source;
   out["joints_deg"] = deg;
   out["flange_mm"] = Vec(flange.translation);
   out["flange_zyz_deg"] = {RadToDeg(pose.alpha_rad), RadToDeg(pose.beta_rad), RadToDeg(pose.gamma_rad)};
@@ -155,9 +186,14 @@ void AddKinematicsCommand(CliApp& cli) {
   CLI::App* cmd = cli.AddCommand(&cli.app, "kinematics",
                                  "RX-130 forward kinematics with the laser tool; optionally aim the laser at a point",
                                  [o] { return RunKinematics(*o); });
-  cmd->add_option("--robot", o->robot_file, "robot parameter file (YAML, Table 4.1 keys); default: nominal")
+  cmd->add_option("--robot",
+                  o->robot_file,
+                  "robot parameter file (YAML, Table 4.1 keys, or a `calibrate robot` output); default: nominal")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--laser", o->laser_file, "laser tool parameter file (theta_x_deg, theta_y_deg, px_mm, py_mm)")
+  cmd->add_option("--laser",
+                  o->laser_file,
+                  "laser tool parameter file (theta_x_deg, theta_y_deg, px_mm, py_mm; a `calibrate robot` output too); "
+                  "default: the --robot file's calibrated laser when it has one, else nominal")
       ->check(CLI::ExistingFile);
   cmd->add_option("--joints-deg", o->joints_deg, "six joint readings in degrees, comma separated")
       ->capture_default_str();
