@@ -16,6 +16,17 @@ namespace {
 const std::string kWorkcell = IDI_WORKCELL_BIN;
 const std::string kRmp = IDI_RMP_BIN;
 
+// A size x size grey image (binary PGM), dark (40) with a bright (200) square over its middle half.
+void WriteSquarePgm(const std::string& path, int size) {
+  std::ofstream img(path, std::ios::binary);
+  img << "P5\n" << size << " " << size << "\n255\n";
+  for (int y = 0; y < size; ++y) {
+    for (int x = 0; x < size; ++x) {
+      img.put(static_cast<char>(x >= size / 4 && x < 3 * size / 4 && y >= size / 4 && y < 3 * size / 4 ? 200 : 40));
+    }
+  }
+}
+
 TEST(CliIntegrationTest, HelpAndVersion) {
   for (const std::string& bin : {kWorkcell, kRmp}) {
     const auto help = RunCommand(bin + " --help");
@@ -134,14 +145,7 @@ TEST(CliIntegrationTest, CalibrationOutputsAreCheckedFirst) {
 
 TEST(CliIntegrationTest, FeaturesRefusesATransposedK) {
   const std::string dir = MakeTempDir("features_k_cli");
-  {
-    // A 64 x 64 grey image with a bright square (binary PGM).
-    std::ofstream img(dir + "/square.pgm", std::ios::binary);
-    img << "P5\n64 64\n255\n";
-    for (int y = 0; y < 64; ++y) {
-      for (int x = 0; x < 64; ++x) img.put(static_cast<char>(x >= 16 && x < 48 && y >= 16 && y < 48 ? 200 : 40));
-    }
-  }
+  WriteSquarePgm(dir + "/square.pgm", 64);
   {
     std::ofstream k(dir + "/transposed.yaml");
     k << "K: [60, 0, 0, 0, 60, 0, 31.5, 31.5, 1]\ndistortion: [-0.1, 0, 0, 0, 0]\n";
@@ -163,18 +167,9 @@ TEST(CliIntegrationTest, FeaturesReportsABadImageAndGoesOn) {
   const std::string dir = MakeTempDir("features_many_cli");
   std::filesystem::create_directories(dir + "/a");
   std::filesystem::create_directories(dir + "/b");
-  auto pgm = [](const std::string& path, int size) {
-    std::ofstream img(path, std::ios::binary);
-    img << "P5\n" << size << " " << size << "\n255\n";
-    for (int y = 0; y < size; ++y) {
-      for (int x = 0; x < size; ++x) {
-        img.put(static_cast<char>(x >= size / 4 && x < 3 * size / 4 && y >= size / 4 && y < 3 * size / 4 ? 200 : 40));
-      }
-    }
-  };
-  pgm(dir + "/tiny.pgm", 8);
-  pgm(dir + "/a/square.pgm", 64);
-  pgm(dir + "/b/square.pgm", 64);
+  WriteSquarePgm(dir + "/tiny.pgm", 8);
+  WriteSquarePgm(dir + "/a/square.pgm", 64);
+  WriteSquarePgm(dir + "/b/square.pgm", 64);
   std::ofstream(dir + "/cam.yaml") << "K: [60, 0, 31.5, 0, 60, 31.5, 0, 0, 1]\ndistortion: [-0.1, 0, 0, 0, 0]\n";
   const auto r = RunCommand(kWorkcell + " features " + dir + "/tiny.pgm " + dir + "/a/square.pgm " + dir +
                             "/b/square.pgm --camera " + dir + "/cam.yaml --json --overlay " + dir + "/out");
@@ -219,13 +214,7 @@ TEST(CliIntegrationTest, ReplayRefusesEventFieldsOfTheWrongType) {
 // height.
 TEST(CliIntegrationTest, FeaturesCameraFileMustBeWhole) {
   const std::string dir = MakeTempDir("features_cam_cli");
-  {
-    std::ofstream img(dir + "/square.pgm", std::ios::binary);
-    img << "P5\n64 64\n255\n";
-    for (int y = 0; y < 64; ++y) {
-      for (int x = 0; x < 64; ++x) img.put(static_cast<char>(x >= 16 && x < 48 && y >= 16 && y < 48 ? 200 : 40));
-    }
-  }
+  WriteSquarePgm(dir + "/square.pgm", 64);
   std::ofstream(dir + "/no_centre.yaml") << "fx_px: 60\nfy_px: 60\nk1: -0.1\n";
   std::ofstream(dir + "/dist_coeffs.yaml")
       << "K: [60, 0, 31.5, 0, 60, 31.5, 0, 0, 1]\ndist_coeffs: [-0.1, 0, 0, 0, 0]\n";

@@ -29,45 +29,32 @@ nlohmann::json Vec(const Vec3d& v) { return {v.x(), v.y(), v.z()}; }
 Status RunKinematics(const KinematicsOptions& o) {
   ParamSet robot = Rx130Nominal();
   ParamSet laser = LaserNominal();
+  // Both files may be `calibrate robot` outputs, which hold the arm, the laser, the point, the
+  // rail-direction and the run's keys: each read skips the others' keys.
+  const std::vector<std::string> run_keys = {"model",
+                                             "comment",
+                                             "laser",
+                                             "calibration",
+                                             "statistics",
+                                             "method",
+                                             "distance_mm",
+                                             "point_x_mm",
+                                             "point_y_mm",
+                                             "point_z_mm",
+                                             "phi_l_deg",
+                                             "phi_m_deg",
+                                             "correlation"};
   if (!o.robot_file.empty()) {
     ParamFileOptions pfo;
-    // Also reads `calibrate robot` output: its laser, point, rail-direction and run keys are skipped here.
-    pfo.extra_keys = {"model",
-                      "comment",
-                      "laser",
-                      "calibration",
-                      "statistics",
-                      "method",
-                      "distance_mm",
-                      "theta_x_deg",
-                      "theta_y_deg",
-                      "px_mm",
-                      "py_mm",
-                      "point_x_mm",
-                      "point_y_mm",
-                      "point_z_mm",
-                      "phi_l_deg",
-                      "phi_m_deg",
-                      "correlation"};
+    pfo.extra_keys = run_keys;
+    for (const ParamSpec& spec : LaserParamSpecs()) pfo.extra_keys.push_back(spec.Key());
     IDI_ASSIGN_OR_RETURN(robot, LoadParamFile(o.robot_file, Rx130ParamSpecs(), pfo));
   }
-  // The laser: --laser, else the calibrated laser of a `calibrate robot` file given as --robot (it holds
-  // both), else nominal. Either file may be a `calibrate robot` output (its arm keys are skipped).
+  // The laser: --laser, else the calibrated laser of a `calibrate robot` file given as --robot, else
+  // nominal.
   std::string laser_source = "nominal";
   ParamFileOptions lfo;
-  lfo.extra_keys = {"model",
-                    "comment",
-                    "laser",
-                    "calibration",
-                    "statistics",
-                    "method",
-                    "distance_mm",
-                    "point_x_mm",
-                    "point_y_mm",
-                    "point_z_mm",
-                    "phi_l_deg",
-                    "phi_m_deg",
-                    "correlation"};
+  lfo.extra_keys = run_keys;
   for (const ParamSpec& spec : Rx130ParamSpecs()) lfo.extra_keys.push_back(spec.Key());
   if (!o.laser_file.empty()) {
     IDI_ASSIGN_OR_RETURN(laser, LoadParamFile(o.laser_file, LaserParamSpecs(), lfo));
