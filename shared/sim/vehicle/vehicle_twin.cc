@@ -94,12 +94,22 @@ void VehicleTwin::Command(int64_t t_ns, const VehicleCommand& in) {
   if (!std::isfinite(command.speed_mps)) command.speed_mps = 0.0;
   if (!std::isfinite(command.yaw_rate_rps)) command.yaw_rate_rps = 0.0;
   const int64_t received = std::max(t_ns, now_ns_);
+  last_command_received_ns_ = std::max(last_command_received_ns_, received);
+  have_command_ = true;
+  // With the motors off the firmware ignores commands: none of them acts once they are on again.
+  if (!motors_enabled_) return;
   const int64_t effective = received + static_cast<int64_t>(std::llround(options_.command_latency_s * 1e9));
   // Commands arrive in order; a late one with an earlier time still queues behind the others.
   const int64_t after = pending_.empty() ? effective : std::max(effective, pending_.back().effective_ns);
   pending_.push_back({after, received, command});
-  last_command_received_ns_ = std::max(last_command_received_ns_, received);
-  have_command_ = true;
+}
+
+void VehicleTwin::SetMotorsEnabled(bool enabled) {
+  if (!enabled) {
+    pending_.clear();
+    commanded_ = VehicleCommand{};
+  }
+  motors_enabled_ = enabled;
 }
 
 namespace {

@@ -121,7 +121,7 @@ class VehicleTwin {
   void SetBalanceMode(bool balance) { balance_mode_ = balance; }
   // Motors disabled (disabled mode, power down, a motor fault, an E-stop): the platform brakes to a
   // stop at the timeout deceleration and ignores commands until enabled.
-  void SetMotorsEnabled(bool enabled) { motors_enabled_ = enabled; }
+  void SetMotorsEnabled(bool enabled);
   bool motors_enabled() const { return motors_enabled_; }
   // Zeroes the encoder and gyro integrators (the RMP's "reset integrators" command).
   void ResetIntegrators(bool left, bool right, bool yaw, bool fore_aft);

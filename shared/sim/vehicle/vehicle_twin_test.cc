@@ -157,15 +157,17 @@ TEST(VehicleTwinTest, ACommandAfterATimeoutDoesNotBringBackTheOldOne) {
     EXPECT_NEAR(twin.truth().speed_mps, 0.0, 1e-9) << "t = " << t << " ms";
   }
 
+  // Commands keep coming while the motors are off (no timeout): the firmware ignores them, and none of
+  // them acts once the motors are on again.
   VehicleTwin off(VehicleTwinOptions{});
   DriveTwin(&off, {1.0, 0.0}, 0, 2000 * kMs);
   off.SetMotorsEnabled(false);
-  off.AdvanceTo(4000 * kMs);
+  DriveTwin(&off, {1.0, 0.0}, 2000 * kMs, 4000 * kMs);
+  ASSERT_FALSE(off.command_timed_out());
   ASSERT_NEAR(off.truth().speed_mps, 0.0, 1e-4);
   off.SetMotorsEnabled(true);
-  off.Command(4000 * kMs, {0.0, 0.0});
-  off.AdvanceTo(4200 * kMs);
-  EXPECT_NEAR(off.truth().speed_mps, 0.0, 1e-4) << "re-enabled, it drove off on the command from before";
+  DriveTwin(&off, {0.0, 0.0}, 4000 * kMs, 4200 * kMs);
+  EXPECT_NEAR(off.truth().speed_mps, 0.0, 1e-4) << "re-enabled, it drove off on a command from before";
 }
 
 // A command or a scale that is not a number is no command and no motion (std::clamp passes NaN
