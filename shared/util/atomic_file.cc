@@ -107,6 +107,20 @@ Status CheckOutputFile(const std::string& path, const std::string& what) {
   return Status::Ok();
 }
 
+Status CheckOutputFolder(const std::string& path, const std::string& what) {
+  namespace fs = std::filesystem;
+  if (path.empty()) return Status::Ok();
+  std::error_code ec;
+  fs::path at = fs::absolute(fs::path(path), ec);
+  if (ec) return IoError(what + " " + path + ": " + ec.message());
+  while (!fs::exists(at, ec) && at.has_parent_path() && at.parent_path() != at) at = at.parent_path();
+  if (!fs::is_directory(at, ec)) return InvalidArgument(what + " " + path + ": " + at.string() + " is not a folder");
+  if (::access(at.c_str(), W_OK | X_OK) != 0) {
+    return IoError(what + " " + path + ": cannot write in " + at.string() + ": " + ErrnoText());
+  }
+  return Status::Ok();
+}
+
 Result<std::string> ReadFile(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) {

@@ -15,6 +15,9 @@ Status WriteFileAtomically(const std::string& path, std::string_view contents);
 // folder exists and may be written, and `path` is not a folder. `what` (an option, e.g. "--out") starts
 // the message. Empty paths (an output not asked for) are fine.
 Status CheckOutputFile(const std::string& path, const std::string& what);
+// The same for a folder of outputs, without making it: it is a writable folder, or the nearest of its
+// parents that exists is one (so that it can be made).
+Status CheckOutputFolder(const std::string& path, const std::string& what);
 
 // Reads a whole file; NotFound if it does not exist, IoError if it cannot be read.
 Result<std::string> ReadFile(const std::string& path);

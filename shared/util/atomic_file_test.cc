@@ -58,6 +58,12 @@ TEST_F(AtomicFileTest, CheckOutputFileBeforeALongRun) {
   const Status missing = CheckOutputFile((dir_ / "no" / "out.yaml").string(), "--out");
   EXPECT_EQ(missing.code(), StatusCode::kNotFound);
   EXPECT_NE(missing.message().find("does not exist"), std::string::npos) << missing.ToString();
+  // A folder of outputs may not exist yet (it is made later, not by the check).
+  EXPECT_TRUE(CheckOutputFolder((dir_ / "plots" / "robot1").string(), "--plots").ok());
+  EXPECT_FALSE(fs::exists(dir_ / "plots"));
+  EXPECT_TRUE(CheckOutputFolder(dir_.string(), "--plots").ok());
+  ASSERT_TRUE(WriteFileAtomically((dir_ / "file").string(), "x").ok());
+  EXPECT_EQ(CheckOutputFolder((dir_ / "file" / "plots").string(), "--plots").code(), StatusCode::kInvalidArgument);
 }
 
 TEST_F(AtomicFileTest, MissingFolderIsAnErrorNamingThePath) {

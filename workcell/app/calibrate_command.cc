@@ -194,14 +194,7 @@ Status CheckOutputs(const std::vector<std::pair<std::string, std::string>>& file
                     const std::string& plots,
                     const std::string& command) {
   for (const auto& [path, option] : files) IDI_RETURN_IF_ERROR(CheckOutputFile(path, command + ": " + option));
-  if (!plots.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(plots, ec);
-    if (ec || !std::filesystem::is_directory(plots)) {
-      return IoError(command + ": --plots " + plots + ": cannot create the folder" + (ec ? ": " + ec.message() : ""));
-    }
-  }
-  return Status::Ok();
+  return CheckOutputFolder(plots, command + ": --plots");
 }
 
 Status RunCalibrateRobot(const RobotCommandOptions& o) {

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -139,7 +140,11 @@ Status RunCalibratePtu(const CalibratePtuOptions& o) {
   // The outputs are checked before the acquisition and solve, not after.
   IDI_RETURN_IF_ERROR(CheckOutputFile(o.out, "calibrate ptu: --out"));
   IDI_RETURN_IF_ERROR(CheckOutputFile(o.report, "calibrate ptu: --report"));
-  if (o.sim) IDI_RETURN_IF_ERROR(CheckOutputFile(o.observations, "calibrate ptu: --observations"));
+  if (o.sim) {
+    IDI_RETURN_IF_ERROR(CheckOutputFile(o.observations, "calibrate ptu: --observations"));
+    IDI_RETURN_IF_ERROR(CheckOutputFile(o.validate, "calibrate ptu: --validate"));
+  }
+  IDI_RETURN_IF_ERROR(CheckOutputFolder(o.plots, "calibrate ptu: --plots"));
   return o.sim ? RunInTwin(o) : RunFromFiles(o);
 }
 

@@ -97,7 +97,7 @@ int64_t NowUnix() { return static_cast<int64_t>(std::time(nullptr)); }
 // Commits `file` as calibration item `item`, with `also` (item -> file) made by the same job, and
 // returns the report with the new version. A new robot calibration drops the rail's: the rail was
 // solved with the old one, and the arms and the rail in use must belong together (jobs that need the
-// rail then ask for calibrate-rail; the service queues it at its next start).
+// rail then ask for calibrate-rail first).
 Result<nlohmann::json> CommitItem(JobContext& ctx,
                                   const std::string& item,
                                   const std::string& file,

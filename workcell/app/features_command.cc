@@ -324,19 +324,34 @@ Status RunFeatures(const FeaturesCliOptions& o) {
       continue;
     }
     const FeatureResult& r = result.value();
+    // What else failed for this image (the laser spot, the overlay) is its error, named in its JSON
+    // line; the next images are still detected and reported.
+    Status image_error = Status::Ok();
     std::optional<LaserSpotResult> spot;
     if (o.laser_spot) {
-      // The image was checked above (grey, not empty), so only a broken finder fails here.
       Result<LaserSpotResult> found = FindLaserSpot(image);
       if (found.ok()) {
         spot = std::move(found).value();
       } else {
-        spdlog::error("{}: laser spot: {}", path, found.status().message());
+        image_error = found.status().WithContext(path + ": laser spot");
       }
+    }
+    if (!o.overlay_dir.empty()) {
+      const std::string stem = std::filesystem::path(path).stem().string();
+      const int n = ++overlay_names[stem];
+      const std::string name = (n == 1 ? stem : fmt::format("{}_{}", stem, n)) + "_features.png";
+      const Status written = WriteOverlay(o.overlay_dir, path, name, image, r, geometry);
+      if (!written.ok() && image_error.ok()) image_error = written;
+    }
+    if (!image_error.ok()) {
+      ++failed;
+      spdlog::error("{}", image_error.message());
+      if (first_error.ok()) first_error = image_error;
     }
     if (o.json) {
       nlohmann::json j = ResultJson(path, r);
       if (spot) j["laser_spot"] = SpotJson(*spot);
+      if (!image_error.ok()) j["error"] = image_error.message();
       std::cout << JsonLine(j) << "\n" << std::flush;
     } else {
       std::cout << fmt::format("{}: {} x {} px, {} lines, {} IDI points, {} curves, {:.2f} ms (noise {:.2f})\n", path,
@@ -354,19 +369,6 @@ Status RunFeatures(const FeaturesCliOptions& o) {
         }
         if (!spot->message.empty()) std::cout << " (" << spot->message << ")";
         std::cout << "\n";
-      }
-    }
-    if (!o.overlay_dir.empty()) {
-      const std::string stem = std::filesystem::path(path).stem().string();
-      const int n = ++overlay_names[stem];
-      const std::string name = (n == 1 ? stem : fmt::format("{}_{}", stem, n)) + "_features.png";
-      // A failed overlay (a full disk, a read-only folder) is this image's error; the next images are
-      // still detected and reported.
-      const Status written = WriteOverlay(o.overlay_dir, path, name, image, r, geometry);
-      if (!written.ok()) {
-        ++failed;
-        spdlog::error("{}", written.message());
-        if (first_error.ok()) first_error = written;
       }
     }
   }

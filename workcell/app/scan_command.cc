@@ -102,12 +102,16 @@ Result<CalibrationFiles> EnsureSimCalibration(const std::string& dir, unsigned s
       return ParseError(marker + ": expected {\"seed\": N}");
     }
     if (m["seed"].get<uint64_t>() != seed) {
-      return InvalidArgument(
-          fmt::format("{}: the calibration there was made in the twin of seed {}, not {}; give "
-                      "another --out or --calibration folder",
-                      dir,
-                      m["seed"].get<uint64_t>(),
-                      seed));
+      if (any) {
+        return InvalidArgument(
+            fmt::format("{}: the calibration there was made in the twin of seed {}, not {}; give "
+                        "another --out or --calibration folder",
+                        dir,
+                        m["seed"].get<uint64_t>(),
+                        seed));
+      }
+      // A run of another seed that made no file yet (interrupted): the folder is this seed's now.
+      IDI_RETURN_IF_ERROR(WriteFileAtomically(marker, nlohmann::json{{"seed", seed}}.dump() + "\n"));
     }
   } else if (any) {
     spdlog::warn("scan: {} does not say which twin seed made its calibration (no twin.json); using its files as given",
