@@ -294,6 +294,40 @@ TEST(CliIntegrationTest, FeaturesFindsTheLaserSpot) {
   std::filesystem::remove_all(dir);
 }
 
+// reconstruct from the twin's two head cameras (`sim render`, with the calibration its JSON gives):
+// views of the same file name in two folders get two overlays (before, the second overwrote the
+// first), and an overlay folder that cannot be made is an error before the reconstruction runs.
+TEST(CliIntegrationTest, ReconstructWritesAnOverlayPerView) {
+  namespace fs = std::filesystem;
+  const std::string dir = MakeTempDir("reconstruct_cli");
+  auto r = RunCommand(kWorkcell + " sim render --out " + dir + "/render");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::ofstream views(dir + "/views.yaml");
+  views << "views:\n";
+  for (const auto& [side, folder] : {std::pair{"left", "a"}, std::pair{"right", "b"}}) {
+    fs::create_directories(dir + "/" + folder);
+    fs::copy_file(dir + "/render/" + side + ".png", dir + "/" + folder + "/view.png");
+    std::ifstream truth(dir + "/render/" + side + ".json");
+    const auto camera = nlohmann::json::parse(truth).at("camera");
+    const auto& k = camera.at("intrinsics");
+    const nlohmann::json kk = {k[0], 0, k[2], 0, k[1], k[3], 0, 0, 1};
+    views << "  - {image: " << folder << "/view.png, K: " << kk.dump()
+          << ", cam_from_world: " << camera.at("cam_from_world").dump() << "}\n";
+  }
+  views.close();
+  r = RunCommand(kWorkcell + " reconstruct --views " + dir + "/views.yaml --json --overlay " + dir + "/out");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_GE(nlohmann::json::parse(r.out).at("points").size(), 10u) << r.out;
+  EXPECT_TRUE(fs::exists(dir + "/out/view_model.png"));
+  EXPECT_TRUE(fs::exists(dir + "/out/view_2_model.png"));
+  r = RunCommand(kWorkcell + " reconstruct --views " + dir + "/views.yaml --json --overlay " + dir + "/views.yaml/out");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("cannot create the folder"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("reconstruct: 2 views"), std::string::npos) << "no reconstruction before the check: " << r.err;
+  EXPECT_TRUE(r.out.empty()) << r.out;
+  fs::remove_all(dir);
+}
+
 TEST(CliIntegrationTest, RmpFootprint) {
   const auto r = RunCommand(kRmp + " fov --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
