@@ -59,7 +59,7 @@ TEST(RawlogExportTest, WritesImagesMrptReadsBack) {
   hal::SimClock clock;
   drivers::MrptCamera cam({"right", "rawlog", {{"rawlog_file", path}, {"rawlog_camera_sensor_label", "right"}}}, &clock);
   ASSERT_TRUE(cam.Start({}).ok());
-  const auto img = cam.Grab(std::chrono::milliseconds(100));
+  const auto img = cam.Grab(std::chrono::milliseconds(5000));
   ASSERT_TRUE(img.ok()) << img.status().ToString();
   EXPECT_EQ(cv::norm(img->pixels, frames[1].image, cv::NORM_INF), 0.0);
   EXPECT_TRUE(cam.Stop().ok());

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "shared/hal/camera.h"
 #include "shared/hal/clock.h"
 #include "shared/sim/workcell/workcell_twin.h"
 #include "shared/util/atomic_file.h"
@@ -23,6 +24,12 @@
 #include "workcell/devices/barrett/barrett_driver.h"
 #include "workcell/devices/ptu/ptu_driver.h"
 #include "workcell/devices/staubli/staubli_driver.h"
+#if defined(IDI_WORKCELL_WITH_V4L2)
+#include "shared/drivers/v4l2/v4l2_camera.h"
+#endif
+#if defined(IDI_WORKCELL_WITH_MRPT)
+#include "shared/drivers/mrpt/mrpt_camera.h"
+#endif
 
 namespace idi::workcell {
 namespace {
@@ -463,6 +470,7 @@ class HardwareDeviceSet final : public DeviceSet {
       o.baud = c.hand.baud;
       hand_ = std::make_unique<BarrettDriver>(o, &clock_);
     }
+    for (const CameraEndpoint& e : c.cameras) cameras_.push_back({e, nullptr, false, 0, ""});
     std::lock_guard<std::mutex> lock(io_);
     TakeHealthSnapshot();
   }
@@ -472,6 +480,7 @@ class HardwareDeviceSet final : public DeviceSet {
     for (auto& a : arms_) IDI_RETURN_IF_ERROR(Step("connecting", [&] { return a->Connect(); }));
     for (auto& p : ptus_) IDI_RETURN_IF_ERROR(Step("connecting", [&] { return p->Connect(); }));
     if (hand_) IDI_RETURN_IF_ERROR(Step("connecting", [&] { return hand_->Connect(); }));
+    for (Camera& cam : cameras_) IDI_RETURN_IF_ERROR(Step("connecting", [&] { return StartCamera(cam); }));
     return Status::Ok();
   }
   // The arms are only read (an unattended move at power-up is not safe); the PTUs go to 0/0 and the
@@ -484,6 +493,8 @@ class HardwareDeviceSet final : public DeviceSet {
       IDI_RETURN_IF_ERROR(Step("homing", [&] { return p->MoveTo(0.0, 0.0, std::chrono::milliseconds(20'000)); }));
     }
     if (hand_) IDI_RETURN_IF_ERROR(Step("homing", [&] { return hand_->Initialize(); }));
+    // The cameras do not move: each must deliver a frame.
+    for (Camera& cam : cameras_) IDI_RETURN_IF_ERROR(Step("checking", [&] { return GrabOne(cam); }));
     return Status::Ok();
   }
   Status StopAll() override {
@@ -539,14 +550,102 @@ class HardwareDeviceSet final : public DeviceSet {
                    {"timeouts", hand_->counters().timeouts},
                    {"faults", hand_->counters().faults}};
     }
+    for (const Camera& cam : cameras_) {
+      nlohmann::json j = {{"name", cam.endpoint.name},
+                          {"backend", cam.endpoint.backend},
+                          {"device", cam.endpoint.device},
+                          {"state", cam.started ? "started" : "stopped"},
+                          {"frames", cam.frames}};
+#if defined(IDI_WORKCELL_WITH_V4L2)
+      if (const auto* v4l2 = dynamic_cast<const drivers::V4l2Camera*>(cam.device.get())) {
+        j["state"] = drivers::V4l2CameraStateName(v4l2->state());
+        j["dropped"] = v4l2->counters().dropped;
+        j["reconnects"] = v4l2->counters().reconnects;
+      }
+#endif
+      if (!cam.last_error.empty()) j["last_error"] = cam.last_error;
+      h["cameras"].push_back(j);
+    }
     std::lock_guard<std::mutex> lock(health_mu_);
     health_ = std::move(h);
+  }
+
+  // A configured camera: opened at Connect (gray, 640 x 480, the A602fc's format), checked with one frame
+  // at Home. The jobs that use images do not run on the real cell yet (MakeHardwareCell), so nothing
+  // else grabs.
+  struct Camera {
+    CameraEndpoint endpoint;
+    std::unique_ptr<hal::CameraDevice> device;
+    bool started = false;
+    uint64_t frames = 0;
+    std::string last_error;
+  };
+  static constexpr std::chrono::milliseconds kFirstFrameTimeout{3000};
+
+  Status StartCamera(Camera& cam) {
+    if (cam.started) return Status::Ok();
+    const std::string where =
+        "camera " + cam.endpoint.name + " (" + cam.endpoint.backend + " " + cam.endpoint.device + ")";
+    if (!cam.device) {
+      if (cam.endpoint.backend == "v4l2") {
+#if defined(IDI_WORKCELL_WITH_V4L2)
+        drivers::V4l2CameraOptions o;
+        o.name = cam.endpoint.name;
+        o.device = cam.endpoint.device;
+        cam.device = std::make_unique<drivers::V4l2Camera>(o);
+#else
+        cam.last_error = "this build has no V4L2 cameras";
+        return FailedPrecondition(where + ": " + cam.last_error);
+#endif
+      } else if (cam.endpoint.backend == "mrpt") {
+#if defined(IDI_WORKCELL_WITH_MRPT)
+        // `device` is the IIDC camera's GUID (0x...), or 0 for the first on the bus.
+        drivers::MrptCameraOptions o;
+        o.name = cam.endpoint.name;
+        o.grabber_type = "dc1394";
+        o.settings["dc1394_camera_guid"] = cam.endpoint.device.empty() ? "0" : cam.endpoint.device;
+        cam.device = std::make_unique<drivers::MrptCamera>(o, &clock_);
+#else
+        cam.last_error = "this build has no MRPT (FireWire cameras)";
+        return FailedPrecondition(where + ": " + cam.last_error);
+#endif
+      } else {
+        cam.last_error = "unknown camera backend";
+        return InvalidArgument(where + ": " + cam.last_error);
+      }
+    }
+    const Status st = cam.device->Start(hal::CameraSettings{});
+    if (!st.ok()) {
+      cam.last_error = st.ToString();
+      return st.WithContext(where);
+    }
+    cam.started = true;
+    cam.last_error.clear();
+    return Status::Ok();
+  }
+
+  Status GrabOne(Camera& cam) {
+    const std::string where = "camera " + cam.endpoint.name;
+    if (!cam.started) return FailedPrecondition(where + ": not started");
+    const Result<hal::Image> img = cam.device->Grab(kFirstFrameTimeout);
+    if (!img.ok()) {
+      cam.last_error = img.status().ToString();
+      return img.status().WithContext(where);
+    }
+    if (img->pixels.empty()) {
+      cam.last_error = "empty frame";
+      return DeviceError(where + ": empty frame");
+    }
+    ++cam.frames;
+    cam.last_error.clear();
+    return Status::Ok();
   }
 
   hal::MonotonicClock clock_;
   std::vector<std::unique_ptr<StaubliDriver>> arms_;
   std::vector<std::unique_ptr<PtuDriver>> ptus_;
   std::unique_ptr<BarrettDriver> hand_;
+  std::vector<Camera> cameras_;
   std::mutex io_;
   std::atomic<bool> stop_requested_{false};
   std::mutex health_mu_;
@@ -558,7 +657,8 @@ Result<Cell> MakeHardwareCell(const WorkcellConfig& config) {
   Cell cell;
   cell.devices = std::make_unique<HardwareDeviceSet>(config);
   spdlog::warn(
-      "backend hardware: devices connect, home, stop and report health; calibration and scan jobs on the "
+      "backend hardware: devices connect, home, stop and report health (cameras: opened and checked with one "
+      "frame); calibration and scan jobs on the "
       "real cell are not available in this version (use the sim backend or `idi-workcell calibrate` "
       "with recorded observation files)");
   return cell;

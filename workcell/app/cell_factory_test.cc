@@ -280,5 +280,42 @@ TEST_F(CellTest, AStopDuringHomingEndsItAfterTheOperationInProgress) {
   EXPECT_TRUE(cell->devices->Home().ok());
 }
 
+// The configured cameras are opened when the cell connects, not ignored: a camera node that is not
+// there fails the connection naming the camera and its node, after the arm and the PTUs connected,
+// and health lists the camera as stopped with the error.
+TEST_F(CellTest, AConfiguredCameraThatIsNotThereFailsTheConnectionNamingIt) {
+  auto arm = Val3Emulator::Start();
+  ASSERT_TRUE(arm.ok()) << arm.status().ToString();
+  PtuEmulatorOptions po;
+  po.chatter_on_first_input = false;
+  auto left = PtuEmulator::Start(po);
+  auto right = PtuEmulator::Start(po);
+  ASSERT_TRUE(left.ok() && right.ok());
+  WorkcellConfig c = SimConfig(dir_);
+  c.backend = "hardware";
+  c.arms = {{"arm1", "127.0.0.1", (*arm)->port()}};
+  c.ptus = {{"left", (*left)->port_path(), 9600}, {"right", (*right)->port_path(), 9600}};
+  c.hand.device.clear();
+  const std::string node = (dir_ / "video-not-here").string();
+  c.cameras = {{"left", "v4l2", node}};
+  auto cell = MakeCell(c);
+  ASSERT_TRUE(cell.ok()) << cell.status().ToString();
+  const nlohmann::json before = cell->devices->Health();
+  ASSERT_EQ(before.at("cameras").size(), 1u) << before.dump();
+  EXPECT_EQ(before.at("cameras")[0].at("name").get<std::string>(), "left");
+  EXPECT_EQ(before.at("cameras")[0].at("state").get<std::string>(), "stopped");
+
+  const Status st = cell->devices->Connect();
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.message().find("camera left"), std::string::npos) << st.message();
+  EXPECT_NE(st.message().find(node), std::string::npos) << st.message();
+  const nlohmann::json after = cell->devices->Health();
+  EXPECT_EQ(after.at("arms")[0].at("state").get<std::string>(), "ready") << after.dump();
+  EXPECT_EQ(after.at("cameras")[0].at("state").get<std::string>(), "stopped");
+  EXPECT_EQ(after.at("cameras")[0].at("frames").get<int>(), 0);
+  EXPECT_FALSE(after.at("cameras")[0].value("last_error", std::string()).empty()) << after.dump();
+  EXPECT_TRUE(cell->devices->StopAll().ok());
+}
+
 }  // namespace
 }  // namespace idi::workcell

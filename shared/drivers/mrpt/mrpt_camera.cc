@@ -4,9 +4,13 @@
 #include <mrpt/hwdrivers/CCameraSensor.h>
 #include <mrpt/obs/CObservationImage.h>
 
+#include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <sstream>
+
+#include "shared/util/timed_call.h"
 
 namespace idi::drivers {
 
@@ -15,13 +19,70 @@ struct MrptCamera::Impl {
   bool open = false;
 };
 
+// The grabber's reads on their own thread, one at a time; each holds the grabber (impl) it reads.
+class MrptCamera::Reader {
+ public:
+  // What one read of the grabber gave: a frame (with its arrival time) or why not.
+  struct Read {
+    Status status = Status::Ok();
+    cv::Mat pixels;
+    int64_t arrival_ns = 0;
+  };
+
+  Reader(std::shared_ptr<Impl> impl, std::string name, bool gray, hal::Clock* clock)
+      : call_([impl = std::move(impl), name = std::move(name), gray, clock] {
+          return ReadFrame(*impl, name, gray, clock);
+        }) {}
+  std::optional<Read> Wait(std::chrono::milliseconds timeout) { return call_.Wait(timeout); }
+  bool Settle(std::chrono::milliseconds timeout) const { return call_.Settle(timeout); }
+
+ private:
+  static Read ReadFrame(Impl& impl, const std::string& name, bool gray, hal::Clock* clock) {
+    Read out;
+    mrpt::obs::CObservation::Ptr obs;
+    try {
+      obs = impl.sensor.getNextFrame();
+    } catch (const std::exception& e) {
+      out.status = DeviceError(name + ": grab failed: " + e.what());
+      return out;
+    }
+    out.arrival_ns = clock->NowNs();
+    if (!obs) {
+      out.status = DeviceError(name + ": no frame (end of stream or camera gone)");
+      return out;
+    }
+    const auto img = std::dynamic_pointer_cast<mrpt::obs::CObservationImage>(obs);
+    if (!img) {
+      out.status = DeviceError(name + ": MRPT delivered a " + std::string(obs->GetRuntimeClass()->className) +
+                               ", expected an image");
+      return out;
+    }
+    cv::Mat m = img->image.asCvMat<cv::Mat>(mrpt::img::DEEP_COPY);
+    if (m.empty()) {
+      out.status = DeviceError(name + ": empty image");
+    } else if (gray && m.channels() == 3) {
+      cv::cvtColor(m, out.pixels, cv::COLOR_BGR2GRAY);
+    } else {
+      out.pixels = m;
+    }
+    return out;
+  }
+
+  TimedCall<Read> call_;
+};
+
 MrptCamera::MrptCamera(MrptCameraOptions options, hal::Clock* clock)
-    : options_(std::move(options)), clock_(clock), impl_(std::make_unique<Impl>()) {}
+    : options_(std::move(options)), clock_(clock), impl_(std::make_shared<Impl>()) {}
 
 MrptCamera::~MrptCamera() { (void)Stop(); }
 
 Status MrptCamera::Start(const hal::CameraSettings& settings) {
   if (impl_->open) return Status::Ok();
+  // A grabber left open under a blocked read (Stop) stays with that read; this Start opens a new one.
+  if (reader_) {
+    reader_.reset();
+    impl_ = std::make_shared<Impl>();
+  }
   settings_ = settings;
   std::ostringstream ini;
   ini << "[CAMERA]\n";
@@ -49,11 +110,19 @@ Status MrptCamera::Start(const hal::CameraSettings& settings) {
     return DeviceError(options_.name + " (MRPT " + options_.grabber_type + "): cannot open: " + e.what());
   }
   impl_->open = true;
+  reader_ = std::make_unique<Reader>(impl_, options_.name, settings.gray, clock_);
   return Status::Ok();
 }
 
 Status MrptCamera::Stop() {
   if (!impl_ || !impl_->open) return Status::Ok();
+  if (reader_ && !reader_->Settle(std::chrono::milliseconds(2000))) {
+    impl_->open = false;  // Grab refuses from now on; the grabber stays with the blocked read
+    return DeviceError(options_.name +
+                       ": a frame read has been blocked in the driver for over 2 s; the grabber "
+                       "is left open to it and the next start opens a new one");
+  }
+  reader_.reset();
   try {
     impl_->sensor.close();
   } catch (const std::exception& e) {
@@ -64,29 +133,19 @@ Status MrptCamera::Stop() {
   return Status::Ok();
 }
 
-Result<hal::Image> MrptCamera::Grab(std::chrono::milliseconds /*timeout*/) {
-  if (!impl_->open) return FailedPrecondition(options_.name + ": not started");
-  mrpt::obs::CObservation::Ptr obs;
-  try {
-    obs = impl_->sensor.getNextFrame();
-  } catch (const std::exception& e) {
-    return DeviceError(options_.name + ": grab failed: " + e.what());
+Result<hal::Image> MrptCamera::Grab(std::chrono::milliseconds timeout) {
+  if (!impl_->open || !reader_) return FailedPrecondition(options_.name + ": not started");
+  std::optional<Reader::Read> r = reader_->Wait(std::max(timeout, std::chrono::milliseconds(0)));
+  if (!r) {
+    return Timeout(options_.name + ": no frame within " + std::to_string(timeout.count()) +
+                   " ms (the read goes on; its frame is the next grab's)");
   }
-  if (!obs) return DeviceError(options_.name + ": no frame (end of stream or camera gone)");
-  const auto img = std::dynamic_pointer_cast<mrpt::obs::CObservationImage>(obs);
-  if (!img) return DeviceError(options_.name + ": MRPT delivered a " + std::string(obs->GetRuntimeClass()->className) +
-                               ", expected an image");
+  if (!r->status.ok()) return r->status;
   hal::Image out;
-  out.timestamp_ns = clock_->NowNs();
+  out.timestamp_ns = r->arrival_ns;
   out.sequence = ++sequence_;
   out.camera = options_.name;
-  cv::Mat m = img->image.asCvMat<cv::Mat>(mrpt::img::DEEP_COPY);
-  if (m.empty()) return DeviceError(options_.name + ": empty image");
-  if (settings_.gray && m.channels() == 3) {
-    cv::cvtColor(m, out.pixels, cv::COLOR_BGR2GRAY);
-  } else {
-    out.pixels = m;
-  }
+  out.pixels = std::move(r->pixels);
   return out;
 }
 

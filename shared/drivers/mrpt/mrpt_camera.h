@@ -27,19 +27,25 @@ class MrptCamera final : public hal::CameraDevice {
   std::string name() const override { return options_.name; }
   // DeviceError naming the camera and MRPT's reason when the grabber cannot be opened.
   Status Start(const hal::CameraSettings& settings) override;
+  // Stop waits up to 2 s for a read in progress; a read still blocked then leaves its grabber open (it
+  // cannot be closed under the read): DeviceError naming the camera, and the next Start opens a new one.
   Status Stop() override;
-  // Timeout is not enforceable through CCameraSensor (it blocks in the driver); frames are timestamped
-  // on arrival with `clock`.
+  // CCameraSensor's read takes no timeout and can block in the driver for ever (a camera unplugged
+  // mid-frame), so it runs on its own thread (shared/util/timed_call.h): Grab returns Timeout naming the
+  // camera when no frame came within `timeout`, and the read goes on; the frame it brings is the next
+  // Grab's. Frames are timestamped on arrival with `clock`, so a late one says how old it is.
   Result<hal::Image> Grab(std::chrono::milliseconds timeout) override;
   // dc1394 only, and only before Start (sets dc1394_shutter in the grabber's configuration).
   Status SetExposure(double exposure_us) override;
 
  private:
   struct Impl;
+  class Reader;
   MrptCameraOptions options_;
   hal::Clock* clock_;
   hal::CameraSettings settings_;
-  std::unique_ptr<Impl> impl_;
+  std::shared_ptr<Impl> impl_;  // shared with a read in progress
+  std::unique_ptr<Reader> reader_;
   uint64_t sequence_ = 0;
 };
 
