@@ -62,6 +62,30 @@ WorkcellConfig SimConfig(const fs::path& state) {
   return c;
 }
 
+// A hardware cell's configuration whose arm and two PTUs are emulators (no hand, no cameras).
+struct EmulatedCell {
+  std::unique_ptr<Val3Emulator> arm;
+  std::unique_ptr<PtuEmulator> left, right;
+  WorkcellConfig config;
+  bool Start(const fs::path& state) {
+    auto a = Val3Emulator::Start();
+    PtuEmulatorOptions po;
+    po.chatter_on_first_input = false;
+    auto l = PtuEmulator::Start(po);
+    auto r = PtuEmulator::Start(po);
+    if (!a.ok() || !l.ok() || !r.ok()) return false;
+    arm = std::move(*a);
+    left = std::move(*l);
+    right = std::move(*r);
+    config = SimConfig(state);
+    config.backend = "hardware";
+    config.arms = {{"arm1", "127.0.0.1", arm->port()}};
+    config.ptus = {{"left", left->port_path(), 9600}, {"right", right->port_path(), 9600}};
+    config.hand.device.clear();
+    return true;
+  }
+};
+
 // Scans need the whole calibration; their arguments are checked before queuing.
 TEST_F(CellTest, ScanAndDayJobsValidateAndNeedTheCalibration) {
   auto cell = MakeCell(SimConfig(dir_));
@@ -230,32 +254,23 @@ TEST_F(CellTest, UnknownBackendAndUnreachableHardwareAreClearErrors) {
 // using), then the rest of the homing is skipped and every device is halted; health meanwhile answers
 // at once, marked busy.
 TEST_F(CellTest, AStopDuringHomingEndsItAfterTheOperationInProgress) {
-  auto arm = Val3Emulator::Start();
-  ASSERT_TRUE(arm.ok()) << arm.status().ToString();
-  PtuEmulatorOptions po;
-  po.chatter_on_first_input = false;
-  auto left = PtuEmulator::Start(po);
-  auto right = PtuEmulator::Start(po);
-  ASSERT_TRUE(left.ok() && right.ok());
-  WorkcellConfig c = SimConfig(dir_);
-  c.backend = "hardware";
-  c.arms = {{"arm1", "127.0.0.1", (*arm)->port()}};
-  c.ptus = {{"left", (*left)->port_path(), 9600}, {"right", (*right)->port_path(), 9600}};
-  c.hand.device.clear();
+  EmulatedCell e;
+  ASSERT_TRUE(e.Start(dir_));
+  WorkcellConfig& c = e.config;
   auto cell = MakeCell(c);
   ASSERT_TRUE(cell.ok()) << cell.status().ToString();
   ASSERT_TRUE(cell->devices->Connect().ok());
-  const std::size_t right_commands = (*right)->commands().size();
-  const std::size_t left_commands = (*left)->commands().size();
+  const std::size_t right_commands = e.right->commands().size();
+  const std::size_t left_commands = e.left->commands().size();
 
   // The left unit answers its first homing command late: homing holds the devices meanwhile.
-  (*left)->DelayNextReply(std::chrono::milliseconds(600));  // within the 1 s reply timeout;
+  e.left->DelayNextReply(std::chrono::milliseconds(600));  // within the 1 s reply timeout;
   Status homed = Status::Ok();
   std::thread home([&] { homed = cell->devices->Home(); });
-  for (int k = 0; k < 1000 && (*left)->commands().size() == left_commands; ++k) {
+  for (int k = 0; k < 1000 && e.left->commands().size() == left_commands; ++k) {
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
-  ASSERT_GT((*left)->commands().size(), left_commands) << "the left unit never got its homing move";
+  ASSERT_GT(e.left->commands().size(), left_commands) << "the left unit never got its homing move";
   EXPECT_TRUE(cell->devices->Health().at("busy").get<bool>());
   EXPECT_TRUE(cell->devices->StopAll().ok());
   home.join();
@@ -263,7 +278,7 @@ TEST_F(CellTest, AStopDuringHomingEndsItAfterTheOperationInProgress) {
   EXPECT_EQ(homed.code(), StatusCode::kCancelled) << homed.ToString();
   EXPECT_NE(homed.message().find("stopped by the operator"), std::string::npos) << homed.message();
   // The right unit was not moved after the stop; both were halted.
-  const std::vector<std::string> after = (*right)->commands();
+  const std::vector<std::string> after = e.right->commands();
   EXPECT_TRUE(std::none_of(after.begin() + static_cast<std::ptrdiff_t>(right_commands),
                            after.end(),
                            [](const std::string& cmd) {
@@ -271,8 +286,8 @@ TEST_F(CellTest, AStopDuringHomingEndsItAfterTheOperationInProgress) {
                              return (cmd.rfind("PP", 0) == 0 || cmd.rfind("TP", 0) == 0) && cmd.size() > 2;
                            }))
       << "the right unit was moved after the stop";
-  EXPECT_GE((*left)->halts(), 1);
-  EXPECT_GE((*right)->halts(), 1);
+  EXPECT_GE(e.left->halts(), 1);
+  EXPECT_GE(e.right->halts(), 1);
   EXPECT_FALSE(cell->devices->Health().at("busy").get<bool>());
 
   // A reset connects again and homes the whole cell.
@@ -284,18 +299,9 @@ TEST_F(CellTest, AStopDuringHomingEndsItAfterTheOperationInProgress) {
 // there fails the connection naming the camera and its node, after the arm and the PTUs connected,
 // and health lists the camera as stopped with the error.
 TEST_F(CellTest, AConfiguredCameraThatIsNotThereFailsTheConnectionNamingIt) {
-  auto arm = Val3Emulator::Start();
-  ASSERT_TRUE(arm.ok()) << arm.status().ToString();
-  PtuEmulatorOptions po;
-  po.chatter_on_first_input = false;
-  auto left = PtuEmulator::Start(po);
-  auto right = PtuEmulator::Start(po);
-  ASSERT_TRUE(left.ok() && right.ok());
-  WorkcellConfig c = SimConfig(dir_);
-  c.backend = "hardware";
-  c.arms = {{"arm1", "127.0.0.1", (*arm)->port()}};
-  c.ptus = {{"left", (*left)->port_path(), 9600}, {"right", (*right)->port_path(), 9600}};
-  c.hand.device.clear();
+  EmulatedCell e;
+  ASSERT_TRUE(e.Start(dir_));
+  WorkcellConfig& c = e.config;
   const std::string node = (dir_ / "video-not-here").string();
   c.cameras = {{"left", "v4l2", node}};
   auto cell = MakeCell(c);
