@@ -7,6 +7,8 @@
 #include <condition_variable>
 #include <memory>
 #include <mutex>
+#include <stdexcept>
+#include <thread>
 
 namespace idi {
 namespace {
@@ -33,8 +35,8 @@ struct Gate {
 };
 
 TEST(TimedCallTest, AFastCallReturnsItsResultEachTime) {
-  int n = 0;
-  TimedCall<int> call([&n] { return ++n; });
+  auto n = std::make_shared<int>(0);  // shared: a call that outlived a failed wait still has it
+  TimedCall<int> call([n] { return ++*n; });
   EXPECT_EQ(call.Wait(milliseconds(2000)), 1);
   EXPECT_EQ(call.Wait(milliseconds(2000)), 2);
   EXPECT_EQ(call.started(), 2u);
@@ -62,6 +64,44 @@ TEST(TimedCallTest, ABlockedCallTimesOutAndItsLateResultIsKeptForTheNextWait) {
   // Then a new call.
   EXPECT_EQ(call.Wait(milliseconds(5000)), 2);
   EXPECT_EQ(call.started(), 2u);
+}
+
+// WaitNext answers with a call that returns after it began: the late result of a call that outlasted
+// an earlier wait is dropped (a camera's old frame), and a new call is made.
+TEST(TimedCallTest, WaitNextDropsAResultFromBeforeItAndMakesANewCall) {
+  auto gate = std::make_shared<Gate>();
+  TimedCall<int> call([gate] { return gate->Pass(); });
+  EXPECT_FALSE(call.WaitNext(milliseconds(20)).has_value());
+  gate->Open();
+  ASSERT_TRUE(call.Settle(milliseconds(5000)));
+  EXPECT_EQ(call.WaitNext(milliseconds(5000)), 2) << "the first call's result came before this wait";
+  EXPECT_EQ(call.dropped(), 1u);
+  EXPECT_EQ(call.started(), 2u);
+  // A call still running when WaitNext begins counts (it returns after).
+  auto gate2 = std::make_shared<Gate>();
+  TimedCall<int> slow([gate2] { return gate2->Pass(); });
+  EXPECT_FALSE(slow.Wait(milliseconds(10)).has_value());
+  std::thread opener([gate2] {
+    std::this_thread::sleep_for(milliseconds(20));
+    gate2->Open();
+  });
+  EXPECT_EQ(slow.WaitNext(milliseconds(5000)), 1);
+  EXPECT_EQ(slow.dropped(), 0u);
+  opener.join();
+}
+
+// An exception thrown by the call comes out of the wait that takes its result, on the caller's thread;
+// the next wait starts a new call.
+TEST(TimedCallTest, AnExceptionOfTheCallIsRethrownByTheWait) {
+  auto n = std::make_shared<int>(0);
+  TimedCall<int> call([n] {
+    if (++*n == 1) throw std::runtime_error("driver failed");
+    return *n;
+  });
+  EXPECT_THROW(call.Wait(milliseconds(5000)), std::runtime_error);
+  EXPECT_FALSE(call.running());
+  EXPECT_EQ(call.Wait(milliseconds(5000)), 2);
+  EXPECT_THROW(TimedCall<int>(std::function<int()>()), std::invalid_argument);
 }
 
 // The object can go while its call is blocked: the call keeps what it needs and finishes on its own.

@@ -507,6 +507,7 @@ class HardwareDeviceSet final : public DeviceSet {
     for (auto& a : arms_) keep(a->Stop());
     for (auto& p : ptus_) keep(p->Halt());
     if (hand_) keep(hand_->Stop());
+    // The cameras move nothing: they stay open (health goes on showing them).
     TakeHealthSnapshot();
     return first;
   }
@@ -582,8 +583,15 @@ class HardwareDeviceSet final : public DeviceSet {
   };
   static constexpr std::chrono::milliseconds kFirstFrameTimeout{3000};
 
+  // A camera whose last start or frame failed is stopped and started again: a reset is how the operator
+  // recovers it (hal::CameraDevice: Stop and Start after a DeviceError).
   Status StartCamera(Camera& cam) {
-    if (cam.started) return Status::Ok();
+    if (cam.started && cam.last_error.empty()) return Status::Ok();
+    if (cam.started) {
+      if (const Status st = cam.device->Stop(); !st.ok())
+        spdlog::warn("camera {}: {}", cam.endpoint.name, st.ToString());
+      cam.started = false;
+    }
     const std::string where =
         "camera " + cam.endpoint.name + " (" + cam.endpoint.backend + " " + cam.endpoint.device + ")";
     if (!cam.device) {

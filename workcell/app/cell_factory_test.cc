@@ -313,6 +313,7 @@ TEST_F(CellTest, AConfiguredCameraThatIsNotThereFailsTheConnectionNamingIt) {
 
   const Status st = cell->devices->Connect();
   ASSERT_FALSE(st.ok());
+  EXPECT_EQ(st.code(), StatusCode::kNotFound) << st.ToString();  // the V4L2 driver's answer
   EXPECT_NE(st.message().find("camera left"), std::string::npos) << st.message();
   EXPECT_NE(st.message().find(node), std::string::npos) << st.message();
   const nlohmann::json after = cell->devices->Health();

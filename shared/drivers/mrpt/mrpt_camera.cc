@@ -19,51 +19,49 @@ struct MrptCamera::Impl {
   bool open = false;
 };
 
-// The grabber's reads on their own thread, one at a time; each holds the grabber (impl) it reads.
+// The grabber's reads on their own thread, one at a time; each holds the grabber (impl) it reads, and
+// nothing else of the camera's (the camera may be gone when a blocked read returns).
 class MrptCamera::Reader {
  public:
-  // What one read of the grabber gave: a frame (with its arrival time) or why not.
+  // What one read of the grabber gave: a frame (with its arrival on the steady clock) or why not.
   struct Read {
     Status status = Status::Ok();
     cv::Mat pixels;
-    int64_t arrival_ns = 0;
+    std::chrono::steady_clock::time_point arrival;
   };
 
-  Reader(std::shared_ptr<Impl> impl, std::string name, bool gray, hal::Clock* clock)
-      : call_([impl = std::move(impl), name = std::move(name), gray, clock] {
-          return ReadFrame(*impl, name, gray, clock);
-        }) {}
-  std::optional<Read> Wait(std::chrono::milliseconds timeout) { return call_.Wait(timeout); }
+  Reader(std::shared_ptr<Impl> impl, std::string name, bool gray)
+      : call_([impl = std::move(impl), name = std::move(name), gray] { return ReadFrame(*impl, name, gray); }) {}
+  std::optional<Read> WaitNext(std::chrono::milliseconds timeout) { return call_.WaitNext(timeout); }
   bool Settle(std::chrono::milliseconds timeout) const { return call_.Settle(timeout); }
 
  private:
-  static Read ReadFrame(Impl& impl, const std::string& name, bool gray, hal::Clock* clock) {
+  static Read ReadFrame(Impl& impl, const std::string& name, bool gray) {
     Read out;
-    mrpt::obs::CObservation::Ptr obs;
     try {
-      obs = impl.sensor.getNextFrame();
+      const mrpt::obs::CObservation::Ptr obs = impl.sensor.getNextFrame();
+      out.arrival = std::chrono::steady_clock::now();
+      if (!obs) {
+        out.status = DeviceError(name + ": no frame (end of stream or camera gone)");
+        return out;
+      }
+      const auto img = std::dynamic_pointer_cast<mrpt::obs::CObservationImage>(obs);
+      if (!img) {
+        out.status = DeviceError(name + ": MRPT delivered a " + std::string(obs->GetRuntimeClass()->className) +
+                                 ", expected an image");
+        return out;
+      }
+      cv::Mat m = img->image.asCvMat<cv::Mat>(mrpt::img::DEEP_COPY);
+      if (m.empty()) {
+        out.status = DeviceError(name + ": empty image");
+      } else if (gray && m.channels() == 3) {
+        cv::cvtColor(m, out.pixels, cv::COLOR_BGR2GRAY);
+      } else {
+        out.pixels = m;
+      }
     } catch (const std::exception& e) {
       out.status = DeviceError(name + ": grab failed: " + e.what());
-      return out;
-    }
-    out.arrival_ns = clock->NowNs();
-    if (!obs) {
-      out.status = DeviceError(name + ": no frame (end of stream or camera gone)");
-      return out;
-    }
-    const auto img = std::dynamic_pointer_cast<mrpt::obs::CObservationImage>(obs);
-    if (!img) {
-      out.status = DeviceError(name + ": MRPT delivered a " + std::string(obs->GetRuntimeClass()->className) +
-                               ", expected an image");
-      return out;
-    }
-    cv::Mat m = img->image.asCvMat<cv::Mat>(mrpt::img::DEEP_COPY);
-    if (m.empty()) {
-      out.status = DeviceError(name + ": empty image");
-    } else if (gray && m.channels() == 3) {
-      cv::cvtColor(m, out.pixels, cv::COLOR_BGR2GRAY);
-    } else {
-      out.pixels = m;
+      out.pixels.release();
     }
     return out;
   }
@@ -78,7 +76,8 @@ MrptCamera::~MrptCamera() { (void)Stop(); }
 
 Status MrptCamera::Start(const hal::CameraSettings& settings) {
   if (impl_->open) return Status::Ok();
-  // A grabber left open under a blocked read (Stop) stays with that read; this Start opens a new one.
+  // A grabber left open under a blocked read (Stop) stays with that read; this Start opens a new one
+  // (which the driver may refuse while the old one still holds the camera).
   if (reader_) {
     reader_.reset();
     impl_ = std::make_shared<Impl>();
@@ -110,7 +109,7 @@ Status MrptCamera::Start(const hal::CameraSettings& settings) {
     return DeviceError(options_.name + " (MRPT " + options_.grabber_type + "): cannot open: " + e.what());
   }
   impl_->open = true;
-  reader_ = std::make_unique<Reader>(impl_, options_.name, settings.gray, clock_);
+  reader_ = std::make_unique<Reader>(impl_, options_.name, settings.gray);
   return Status::Ok();
 }
 
@@ -120,7 +119,8 @@ Status MrptCamera::Stop() {
     impl_->open = false;  // Grab refuses from now on; the grabber stays with the blocked read
     return DeviceError(options_.name +
                        ": a frame read has been blocked in the driver for over 2 s; the grabber "
-                       "is left open to it and the next start opens a new one");
+                       "is left open to it, and the next start opens another (which the driver may refuse "
+                       "until that read returns)");
   }
   reader_.reset();
   try {
@@ -135,17 +135,21 @@ Status MrptCamera::Stop() {
 
 Result<hal::Image> MrptCamera::Grab(std::chrono::milliseconds timeout) {
   if (!impl_->open || !reader_) return FailedPrecondition(options_.name + ": not started");
-  std::optional<Reader::Read> r = reader_->Wait(std::max(timeout, std::chrono::milliseconds(0)));
+  // The next frame: one that a read which outlasted an earlier grab brought before this call is old and
+  // dropped (TimedCall::WaitNext).
+  const std::optional<Reader::Read> r = reader_->WaitNext(std::max(timeout, std::chrono::milliseconds(0)));
   if (!r) {
     return Timeout(options_.name + ": no frame within " + std::to_string(timeout.count()) +
-                   " ms (the read goes on; its frame is the next grab's)");
+                   " ms (the read goes on in the driver)");
   }
   if (!r->status.ok()) return r->status;
   hal::Image out;
-  out.timestamp_ns = r->arrival_ns;
+  // On `clock`, from its age on the steady clock (the read's thread never touches `clock`).
+  const auto age = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - r->arrival);
+  out.timestamp_ns = clock_->NowNs() - age.count();
   out.sequence = ++sequence_;
   out.camera = options_.name;
-  out.pixels = std::move(r->pixels);
+  out.pixels = r->pixels;
   return out;
 }
 

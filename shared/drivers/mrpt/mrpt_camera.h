@@ -32,8 +32,9 @@ class MrptCamera final : public hal::CameraDevice {
   Status Stop() override;
   // CCameraSensor's read takes no timeout and can block in the driver for ever (a camera unplugged
   // mid-frame), so it runs on its own thread (shared/util/timed_call.h): Grab returns Timeout naming the
-  // camera when no frame came within `timeout`, and the read goes on; the frame it brings is the next
-  // Grab's. Frames are timestamped on arrival with `clock`, so a late one says how old it is.
+  // camera when no frame came within `timeout`, and the read goes on. A frame that read brings before
+  // the next Grab is old by then and is dropped, so Grab gives the next frame. Frames are timestamped
+  // on `clock` at their arrival.
   Result<hal::Image> Grab(std::chrono::milliseconds timeout) override;
   // dc1394 only, and only before Start (sets dc1394_shutter in the grabber's configuration).
   Status SetExposure(double exposure_us) override;
