@@ -99,6 +99,7 @@ Status RunStatus(const ClientOptions& o) {
     std::cout << "calibration: none\n";
   }
   if (!reply.value("last_error", std::string()).empty()) std::cout << "last error: " << reply["last_error"].get<std::string>() << "\n";
+  if (reply.contains("devices")) std::cout << FormatDeviceHealth(reply["devices"]);
   return Status::Ok();
 }
 
@@ -143,6 +144,40 @@ void AddClientFlags(CLI::App* cmd, ClientOptions* o) {
 }
 
 }  // namespace
+
+std::string FormatDeviceHealth(const nlohmann::json& devices) {
+  if (!devices.is_object()) return "";
+  std::string out = fmt::format(
+      "devices ({}{}):\n",
+      devices.value("backend", std::string("?")),
+      devices.value("busy", false) ? ", busy: a device operation is in progress, this is from before it" : "");
+  auto line = [&out](const char* kind, const nlohmann::json& d) {
+    if (!d.is_object()) return;
+    std::string state;
+    if (d.contains("state") && d["state"].is_string()) {
+      state = d["state"].get<std::string>();
+    } else if (d.contains("ok") && d["ok"].is_boolean()) {
+      state = d["ok"].get<bool>() ? "ok" : "error";
+    }
+    std::string rest;
+    for (const auto& [key, value] : d.items()) {
+      if (key == "name" || key == "state" || key == "ok") continue;
+      rest += fmt::format(
+          "{}{} {}", rest.empty() ? "" : ", ", key, value.is_string() ? value.get<std::string>() : value.dump());
+    }
+    out += fmt::format("  {} {}: {}{}\n",
+                       kind,
+                       d.value("name", std::string("?")),
+                       state.empty() ? "?" : state,
+                       rest.empty() ? "" : " (" + rest + ")");
+  };
+  for (const auto& [key, kind] : {std::pair{"arms", "arm"}, std::pair{"ptus", "ptu"}, std::pair{"cameras", "camera"}}) {
+    if (!devices.contains(key) || !devices[key].is_array()) continue;
+    for (const nlohmann::json& d : devices[key]) line(kind, d);
+  }
+  if (devices.contains("hand")) line("hand", devices["hand"]);
+  return out;
+}
 
 void AddServiceCommands(CliApp& cli, CellFactory make_cell) {
   auto run = std::make_shared<RunOptions>();

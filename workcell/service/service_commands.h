@@ -3,6 +3,7 @@
 
 #include <functional>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "shared/runtime/cli.h"
@@ -20,6 +21,10 @@ struct Cell {
   std::vector<std::pair<std::string, nlohmann::json>> startup_jobs;  // queued after the calibration check
 };
 using CellFactory = std::function<Result<Cell>(const WorkcellConfig& config)>;
+
+// The devices' health (DeviceSet::Health, as `status --json` gives it under "devices") as lines for a
+// person: one per arm, PTU, hand and camera, its state first, then what else it reports.
+std::string FormatDeviceHealth(const nlohmann::json& devices);
 
 // Registers run/status/job/stop. `make_cell` builds the devices and jobs for a configuration.
 void AddServiceCommands(CliApp& cli, CellFactory make_cell);

@@ -14,6 +14,7 @@
 #include "shared/runtime/systemd_notify.h"
 #include "shared/util/atomic_file.h"
 #include "workcell/service/control_socket.h"
+#include "workcell/service/service_commands.h"
 
 namespace idi::workcell {
 namespace {
@@ -90,6 +91,33 @@ JobSpec FaultyJob() {
     return DeviceError("arm 1: controller stopped answering");
   };
   return j;
+}
+
+// `status` shows the devices to a person: each arm, PTU, camera and the hand on its own line, state
+// first; the sim's arms (ok / error) too; a busy snapshot says so; anything that is not health is
+// nothing.
+TEST(ServiceTest, StatusShowsEachDeviceOnALine) {
+  const nlohmann::json hw = nlohmann::json::parse(R"({
+    "backend": "hardware", "busy": true,
+    "arms": [{"name": "arm1", "state": "ready", "timeouts": 0, "faults": 1}],
+    "ptus": [{"name": "ptu-left", "state": "disconnected", "timeouts": 2, "faults": 0}],
+    "hand": {"name": "barrett", "state": "ready", "timeouts": 0, "faults": 0},
+    "cameras": [{"name": "left", "backend": "v4l2", "device": "/dev/video0", "state": "stopped", "frames": 0,
+                 "last_error": "not found: camera left (/dev/video0): no such device node"}]})");
+  const std::string text = FormatDeviceHealth(hw);
+  EXPECT_EQ(text,
+            "devices (hardware, busy: a device operation is in progress, this is from before it):\n"
+            "  arm arm1: ready (faults 1, timeouts 0)\n"
+            "  ptu ptu-left: disconnected (faults 0, timeouts 2)\n"
+            "  camera left: stopped (backend v4l2, device /dev/video0, frames 0, last_error not found: camera left "
+            "(/dev/video0): no such device node)\n"
+            "  hand barrett: ready (faults 0, timeouts 0)\n");
+  const nlohmann::json sim = nlohmann::json::parse(
+      R"({"backend": "sim", "arms": [{"name": "rx130-1", "ok": true, "joints_deg": [0, 1]},
+                                     {"name": "rx130-2", "ok": false, "error": "stopped"}]})");
+  EXPECT_EQ(FormatDeviceHealth(sim),
+            "devices (sim):\n  arm rx130-1: ok (joints_deg [0,1])\n  arm rx130-2: error (error stopped)\n");
+  EXPECT_EQ(FormatDeviceHealth(nlohmann::json("x")), "");
 }
 
 TEST(ServiceTest, RunsJobsAndWritesReports) {
