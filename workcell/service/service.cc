@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <ctime>
 #include <filesystem>
@@ -285,6 +286,26 @@ idi::Status WorkcellService::Run() {
   return ended;
 }
 
+void WorkcellService::QueueMissingCalibrationLocked(const std::string& after_job,
+                                                    const std::vector<std::string>& missing) {
+  for (const std::string& item : missing) {
+    const auto it = options_.calibration_job_for_item.find(item);
+    if (it == options_.calibration_job_for_item.end() || jobs_.count(it->second) == 0) {
+      spdlog::warn("service: after job '{}' the calibration lacks {}", after_job, item);
+      continue;
+    }
+    const std::string& job = it->second;
+    if (std::any_of(queue_.begin(), queue_.end(), [&job](const QueuedJob& q) { return q.name == job; })) continue;
+    if (!options_.recalibrate_when_stale || queue_.size() >= kMaxQueuedJobs) {
+      spdlog::warn("service: after job '{}' the calibration lacks {}: run job {}", after_job, item, job);
+      continue;
+    }
+    queue_.push_back({next_job_id_++, job, nlohmann::json::object()});
+    spdlog::warn(
+        "service: after job '{}' the calibration lacks {}; queued job {} '{}'", after_job, item, queue_.back().id, job);
+  }
+}
+
 void WorkcellService::WorkerLoop() {
   while (true) {
     QueuedJob job;
@@ -334,6 +355,19 @@ void WorkcellService::WorkerLoop() {
       (void)devices_->StopAll();
     }
     (void)WriteFileAtomically((fs::path(ctx.run_dir) / "report.json").string(), report.dump(2) + "\n");
+    // What a calibration job left the calibration without (read before the lock: it reads files).
+    std::vector<std::string> missing;
+    const bool calibration_job =
+        std::find(options_.calibration_jobs.begin(), options_.calibration_jobs.end(), job.name) !=
+        options_.calibration_jobs.end();
+    if (result.ok() && calibration_job) {
+      const auto current = calibration_.Current();
+      if (current.ok() && current->has_value()) {
+        for (const std::string& item : options_.required_calibration_items) {
+          if ((*current)->items.count(item) == 0) missing.push_back(item);
+        }
+      }
+    }
     std::lock_guard<std::mutex> lock(mu_);
     last_result_ = report;
     current_job_.clear();
@@ -351,6 +385,7 @@ void WorkcellService::WorkerLoop() {
       } else {
         spdlog::info("service: job {} '{}' done, results in {}", job.id, job.name, ctx.run_dir);
       }
+      QueueMissingCalibrationLocked(job.name, missing);
       state_ = ServiceState::kIdle;
       state_reason_ = "ready";
     }

@@ -33,6 +33,11 @@ Status RunService(const RunOptions& o, const CellFactory& make_cell) {
   so.recalibrate_when_stale = config.recalibrate_when_stale;
   so.calibration_jobs = cell.calibration_jobs;
   so.required_calibration_items = cell.calibration_items;
+  if (cell.calibration_items.size() == cell.calibration_jobs.size()) {
+    for (std::size_t k = 0; k < cell.calibration_items.size(); ++k) {
+      so.calibration_job_for_item[cell.calibration_items[k]] = cell.calibration_jobs[k];
+    }
+  }
   so.startup_jobs = cell.startup_jobs;
   so.exit_when_idle = config.exit_when_idle;
   WorkcellService service(so, cell.devices.get(), std::move(cell.jobs));

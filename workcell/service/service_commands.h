@@ -17,7 +17,8 @@ struct Cell {
   std::unique_ptr<DeviceSet> devices;
   std::vector<JobSpec> jobs;
   std::vector<std::string> calibration_jobs;      // run (in order) when the calibration is missing/stale
-  std::vector<std::string> calibration_items;     // what a complete calibration holds
+  std::vector<std::string> calibration_items;     // what a complete calibration holds; item k is made by
+                                                  // calibration_jobs[k] when the two lists are as long
   std::vector<std::pair<std::string, nlohmann::json>> startup_jobs;  // queued after the calibration check
 };
 using CellFactory = std::function<Result<Cell>(const WorkcellConfig& config)>;

@@ -8,11 +8,13 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <thread>
 
 #include "shared/runtime/systemd_notify.h"
 #include "shared/util/atomic_file.h"
+#include "workcell/service/calibration_store.h"
 #include "workcell/service/control_socket.h"
 #include "workcell/service/service_commands.h"
 
@@ -305,6 +307,60 @@ TEST(ServiceTest, ResetKeepsTheWatchdogFed) {
   ::unsetenv("WATCHDOG_USEC");
   ::close(sock);
   fs::remove_all(dir);
+}
+
+// A calibration job that leaves the calibration without an item (a robot's new calibration drops the
+// rail solved with the old arm) gets that item's job queued after it, when the service recalibrates
+// what is stale; otherwise nothing is queued (the journal names the job to run).
+TEST(ServiceTest, ACalibrationJobThatDropsAnItemQueuesThatItemsJob) {
+  for (const bool recalibrate : {true, false}) {
+    FakeDevices dev;
+    ServiceOptions opt;
+    opt.state_dir = TempState(recalibrate ? "dropped_item" : "dropped_item_warn");
+    opt.recalibrate_when_stale = recalibrate;
+    opt.calibration_jobs = {"cal-robot", "cal-rail"};
+    opt.required_calibration_items = {"robot1", "rail"};
+    opt.calibration_job_for_item = {{"robot1", "cal-robot"}, {"rail", "cal-rail"}};
+    {
+      CalibrationStore store(opt.state_dir);
+      ASSERT_TRUE(store.Open().ok());
+      ASSERT_TRUE(store.Commit({{"robot1", "a: 1\n"}, {"rail", "b: 1\n"}}, std::time(nullptr)).ok());
+    }
+    std::atomic<int> robot_runs{0}, rail_runs{0};
+    JobSpec robot;
+    robot.name = "cal-robot";
+    robot.run = [&robot_runs](JobContext& ctx, const nlohmann::json&) -> Result<nlohmann::json> {
+      IDI_RETURN_IF_ERROR(ctx.calibration->Commit({{"robot1", "a: 2\n"}}, std::time(nullptr), {"rail"}).status());
+      ++robot_runs;
+      return nlohmann::json::object();
+    };
+    JobSpec rail;
+    rail.name = "cal-rail";
+    rail.run = [&rail_runs](JobContext& ctx, const nlohmann::json&) -> Result<nlohmann::json> {
+      IDI_RETURN_IF_ERROR(ctx.calibration->Commit({{"rail", "b: 2\n"}}, std::time(nullptr)).status());
+      ++rail_runs;
+      return nlohmann::json::object();
+    };
+    WorkcellService svc(opt, &dev, {robot, rail});
+    std::thread t([&] { (void)svc.Run(); });
+    ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kIdle; }));
+    EXPECT_EQ(rail_runs, 0) << "the calibration was complete at start";
+    EXPECT_TRUE(svc.Handle(Job("cal-robot")).value("ok", false));
+    ASSERT_TRUE(WaitFor([&] { return robot_runs == 1; }));
+    if (recalibrate) {
+      EXPECT_TRUE(WaitFor([&] { return rail_runs == 1; })) << "the rail's job was not queued";
+    }
+    ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kIdle && svc.StatusJson()["queue"].empty(); }));
+    EXPECT_EQ(rail_runs, recalibrate ? 1 : 0);
+    EXPECT_EQ(robot_runs, 1);
+    CalibrationStore store(opt.state_dir);
+    const auto current = store.Current();
+    ASSERT_TRUE(current.ok() && current->has_value());
+    EXPECT_EQ((*current)->items.count("rail"), recalibrate ? 1u : 0u);
+    svc.RequestShutdown();
+    t.join();
+    fs::remove_all(opt.state_dir);
+  }
 }
 
 TEST(ServiceTest, FailedStartupIsAFaultAndMissingCalibrationQueuesCalibration) {
