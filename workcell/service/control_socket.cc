@@ -89,13 +89,18 @@ Result<std::unique_ptr<ControlServer>> ControlServer::Start(const ControlServerO
   }
   const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
   if (fd < 0) return IoError("control socket: " + Errno());
-  const mode_t old_mask = ::umask(0117);  // the file is created 0660
-  const int bound = ::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr));
-  ::umask(old_mask);
-  if (bound != 0) {
+  if (::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) != 0) {
     const std::string err = Errno();
     ::close(fd);
     return IoError(options.path + ": bind failed: " + err);
+  }
+  // 0660, set on the file rather than through the umask (which is the whole process's: a file another
+  // thread wrote meanwhile would have been made with it). Nobody can connect before listen() anyway.
+  if (::chmod(options.path.c_str(), 0660) != 0) {
+    const std::string err = Errno();
+    ::close(fd);
+    ::unlink(options.path.c_str());
+    return IoError(options.path + ": cannot make the socket 0660: " + err);
   }
   if (gid != static_cast<gid_t>(-1) && ::chown(options.path.c_str(), static_cast<uid_t>(-1), gid) != 0) {
     const std::string err = Errno();
