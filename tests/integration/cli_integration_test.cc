@@ -101,6 +101,15 @@ TEST(CliIntegrationTest, RobotCalibrationFeedsKinematics) {
                  " --joints-deg 0,-90,90,0,0,0 --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(nlohmann::json::parse(r.out).at("laser_direction"), calibrated.at("laser_direction"));
+  // The file records the twin it was made in; a rail calibration in another twin refuses it (before, it
+  // solved that twin's rail with this twin's arm), before acquiring anything.
+  std::ifstream in(path);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("sim_seed: 1\n"), std::string::npos) << text.substr(0, 200);
+  r = RunCommand(kWorkcell + " calibrate rtu --sim --seed 2 --robot1 " + path + " --out " + dir + "/rail.yaml");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("calibrated in the twin of seed 1, this run's is 2"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/rail.yaml"));
   std::filesystem::remove_all(dir);
 }
 

@@ -274,7 +274,7 @@ Status RunCalibrateRobot(const RobotCommandOptions& o) {
     for (const ParamSpec& s : calib::RobotCalibrationSpecs()) names.push_back(s.Key());
     spdlog::info("parameters correlated above 0.95: {}", optim::DescribeCorrelations(r.identifiability, names));
   }
-  IDI_RETURN_IF_ERROR(WriteRobotCalibration(o.out, r, data));
+  IDI_RETURN_IF_ERROR(WriteRobotCalibration(o.out, r, data, o.sim ? std::optional<unsigned>(o.seed) : std::nullopt));
   spdlog::info("wrote {}", o.out);
 
   const nlohmann::json acquisition = report.contains("acquisition") ? report["acquisition"] : nlohmann::json();
@@ -341,7 +341,34 @@ namespace {
 // Robot k's model for the rail calibration: from its file, or (--sim) calibrated in the twin first.
 Result<calib::ArmModel> ArmForRtu(const std::string& file, bool sim, sim::WorkcellTwin* twin, int k, unsigned seed,
                                   double spot_sigma_mm, const CancelCheck& cancelled) {
-  if (!file.empty() && (!sim || std::filesystem::exists(file))) return LoadRobotCalibration(file);
+  if (!file.empty() && (!sim || std::filesystem::exists(file))) {
+    if (sim) {
+      // The rail is solved with this twin's arms: a file from another twin's (or from the real cell)
+      // would give the rail the wrong arm.
+      IDI_ASSIGN_OR_RETURN(const std::optional<unsigned> made_in, RobotCalibrationSimSeed(file));
+      if (made_in && *made_in != seed) {
+        return InvalidArgument(fmt::format(
+            "calibrate rtu: --robot{} {} was calibrated in the twin of seed {}, this run's is {} (give --seed {}, or "
+            "a file name that does not exist yet: --sim then calibrates robot {} and writes it there)",
+            k + 1,
+            file,
+            *made_in,
+            seed,
+            *made_in,
+            k + 1));
+      }
+      if (!made_in) {
+        spdlog::warn(
+            "calibrate rtu: --robot{} {} records no twin seed (not made by `calibrate robot --sim`, or by an "
+            "older version): the twin of seed {} may have another arm {}",
+            k + 1,
+            file,
+            seed,
+            k + 1);
+      }
+    }
+    return LoadRobotCalibration(file);
+  }
   if (!sim) return InvalidArgument(fmt::format("calibrate rtu: --robot{} FILE.yaml is required (or --sim)", k + 1));
   ArmDevices dev = DevicesFromTwin(*twin, k);
   RobotAcquisitionOptions ao;
@@ -356,7 +383,7 @@ Result<calib::ArmModel> ArmForRtu(const std::string& file, bool sim, sim::Workce
   IDI_ASSIGN_OR_RETURN(const calib::RobotCalibrationResult r, calib::CalibrateRobot(acq.data, co));
   spdlog::info("robot {}: {}", k + 1, r.Summary());
   if (!file.empty()) {
-    IDI_RETURN_IF_ERROR(WriteRobotCalibration(file, r, acq.data));
+    IDI_RETURN_IF_ERROR(WriteRobotCalibration(file, r, acq.data, seed));
     spdlog::info("wrote {}", file);
   }
   return calib::ArmFromRobotCalibration(r);

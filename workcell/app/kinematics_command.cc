@@ -43,7 +43,8 @@ Status RunKinematics(const KinematicsOptions& o) {
                                              "point_z_mm",
                                              "phi_l_deg",
                                              "phi_m_deg",
-                                             "correlation"};
+                                             "correlation",
+                                             "sim_seed"};
   if (!o.robot_file.empty()) {
     ParamFileOptions pfo;
     pfo.extra_keys = run_keys;

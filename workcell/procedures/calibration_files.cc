@@ -146,12 +146,15 @@ Status WriteRailObservations(const std::string& path, const std::vector<calib::R
   return WriteFileAtomically(path, s.str());
 }
 
-Status WriteRobotCalibration(const std::string& path, const calib::RobotCalibrationResult& r,
-                             const calib::RobotCalibrationData& data) {
+Status WriteRobotCalibration(const std::string& path,
+                             const calib::RobotCalibrationResult& r,
+                             const calib::RobotCalibrationData& data,
+                             std::optional<unsigned> sim_seed) {
   YAML::Emitter e;
   e.SetDoublePrecision(12);
   e << YAML::BeginMap;
   e << YAML::Key << "model" << YAML::Value << "rx130-laser-vicki";
+  if (sim_seed) e << YAML::Key << "sim_seed" << YAML::Value << *sim_seed;
   e << YAML::Key << "method" << YAML::Value << calib::MethodName(data.method);
   e << YAML::Key << "distance_mm" << YAML::Value << data.distance_mm;
   EmitParamSet(e, r.params);
@@ -187,9 +190,25 @@ Status WriteRobotCalibration(const std::string& path, const calib::RobotCalibrat
   return WriteFileAtomically(path, std::string(e.c_str()) + "\n");
 }
 
+Result<std::optional<unsigned>> RobotCalibrationSimSeed(const std::string& path) {
+  IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(path));
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& ex) {
+    return InvalidArgument(path + ": " + ex.what());
+  }
+  if (!root.IsMap() || !root["sim_seed"]) return std::optional<unsigned>();
+  try {
+    return std::optional<unsigned>(root["sim_seed"].as<unsigned>());
+  } catch (const YAML::Exception&) {
+    return InvalidArgument(path + ": sim_seed must be a whole number >= 0");
+  }
+}
+
 Result<calib::ArmModel> LoadRobotCalibration(const std::string& path) {
   ParamFileOptions o;
-  o.extra_keys = {"model", "comment", "method", "distance_mm", "statistics", "correlation"};
+  o.extra_keys = {"model", "comment", "method", "distance_mm", "statistics", "correlation", "sim_seed"};
   IDI_ASSIGN_OR_RETURN(const ParamSet p, LoadParamFile(path, calib::RobotCalibrationSpecs(), o));
   calib::ArmModel m;
   m.robot = p.Slice(0, kRx130ParamCount);

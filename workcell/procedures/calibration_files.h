@@ -8,6 +8,7 @@
 #pragma once
 
 #include <nlohmann/json_fwd.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -27,8 +28,14 @@ Status WriteRobotObservations(const std::string& path, const std::vector<calib::
 Result<std::vector<calib::RailReading>> ReadRailObservations(const std::string& path);
 Status WriteRailObservations(const std::string& path, const std::vector<calib::RailReading>& readings);
 
-Status WriteRobotCalibration(const std::string& path, const calib::RobotCalibrationResult& result,
-                             const calib::RobotCalibrationData& data);
+// `sim_seed`: the digital twin's seed when the readings came from it (written as sim_seed, so a rail
+// calibration in the twin can refuse another twin's arm).
+Status WriteRobotCalibration(const std::string& path,
+                             const calib::RobotCalibrationResult& result,
+                             const calib::RobotCalibrationData& data,
+                             std::optional<unsigned> sim_seed = std::nullopt);
+// The twin seed a robot calibration file records (nullopt: not made in the twin, or by an older version).
+Result<std::optional<unsigned>> RobotCalibrationSimSeed(const std::string& path);
 // An arm's model from a robot calibration file (robot, laser and rail direction).
 Result<calib::ArmModel> LoadRobotCalibration(const std::string& path);
 Status WriteRailCalibration(const std::string& path, const calib::RailCalibrationResult& result);
