@@ -108,7 +108,7 @@ TEST(CliIntegrationTest, RobotCalibrationFeedsKinematics) {
   EXPECT_NE(text.find("sim_seed: 1\n"), std::string::npos) << text.substr(0, 200);
   r = RunCommand(kWorkcell + " calibrate rtu --sim --seed 2 --robot1 " + path + " --out " + dir + "/rail.yaml");
   EXPECT_EQ(r.exit_code, 2) << r.err;
-  EXPECT_NE(r.err.find("calibrated in the twin of seed 1, this run's is 2"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("was made in the twin of seed 1, this run's twin is seed 2"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(dir + "/rail.yaml"));
   std::filesystem::remove_all(dir);
 }

@@ -348,13 +348,14 @@ Result<calib::ArmModel> ArmForRtu(const std::string& file, bool sim, sim::Workce
       IDI_ASSIGN_OR_RETURN(const std::optional<unsigned> made_in, RobotCalibrationSimSeed(file));
       if (made_in && *made_in != seed) {
         return InvalidArgument(fmt::format(
-            "calibrate rtu: --robot{} {} was calibrated in the twin of seed {}, this run's is {} (give --seed {}, or "
-            "a file name that does not exist yet: --sim then calibrates robot {} and writes it there)",
+            "calibrate rtu: robot {}'s calibration {} was made in the twin of seed {}, this run's twin is seed {}: "
+            "its arm is not this twin's (calibrate robot {} in this twin first; from the command line, a --robot{} "
+            "file name that does not exist yet has --sim do it)",
             k + 1,
             file,
             *made_in,
             seed,
-            *made_in,
+            k + 1,
             k + 1));
       }
       if (!made_in) {

@@ -435,6 +435,10 @@ Result<Cell> MakeSimCell(const WorkcellConfig& config) {
   if (!config.sim_day.empty()) cell.startup_jobs.push_back({"day", {{"objects", config.sim_day}}});
   cell.calibration_jobs = {"calibrate-robot1", "calibrate-robot2", "calibrate-rail", "calibrate-ptu"};
   cell.calibration_items = {"robot1", "robot2", "rail", "ptu"};
+  cell.calibration_job_for_item = {{"robot1", "calibrate-robot1"},
+                                   {"robot2", "calibrate-robot2"},
+                                   {"rail", "calibrate-rail"},
+                                   {"ptu", "calibrate-ptu"}};
   return cell;
 }
 

@@ -287,22 +287,27 @@ idi::Status WorkcellService::Run() {
 }
 
 void WorkcellService::QueueMissingCalibrationLocked(const std::string& after_job,
-                                                    const std::vector<std::string>& missing) {
-  for (const std::string& item : missing) {
+                                                    const std::vector<std::string>& dropped) {
+  for (const std::string& item : dropped) {
     const auto it = options_.calibration_job_for_item.find(item);
-    if (it == options_.calibration_job_for_item.end() || jobs_.count(it->second) == 0) {
-      spdlog::warn("service: after job '{}' the calibration lacks {}", after_job, item);
+    if (it == options_.calibration_job_for_item.end() || jobs_.count(it->second) == 0 || it->second == after_job) {
+      spdlog::warn("service: job '{}' left the calibration without {}", after_job, item);
       continue;
     }
     const std::string& job = it->second;
     if (std::any_of(queue_.begin(), queue_.end(), [&job](const QueuedJob& q) { return q.name == job; })) continue;
-    if (!options_.recalibrate_when_stale || queue_.size() >= kMaxQueuedJobs) {
-      spdlog::warn("service: after job '{}' the calibration lacks {}: run job {}", after_job, item, job);
+    if (!options_.recalibrate_when_stale || cancel_ || shutdown_ || queue_.size() >= kMaxQueuedJobs) {
+      spdlog::warn("service: job '{}' left the calibration without {}: run job {}", after_job, item, job);
       continue;
     }
-    queue_.push_back({next_job_id_++, job, nlohmann::json::object()});
-    spdlog::warn(
-        "service: after job '{}' the calibration lacks {}; queued job {} '{}'", after_job, item, queue_.back().id, job);
+    // Before the jobs that need it (a scan queued behind the robot's calibration), after any
+    // calibration jobs already waiting.
+    auto at = std::find_if(queue_.begin(), queue_.end(), [this](const QueuedJob& q) {
+      return std::find(options_.calibration_jobs.begin(), options_.calibration_jobs.end(), q.name) ==
+             options_.calibration_jobs.end();
+    });
+    at = queue_.insert(at, {next_job_id_++, job, nlohmann::json::object()});
+    spdlog::warn("service: job '{}' left the calibration without {}; queued job {} '{}'", after_job, item, at->id, job);
   }
 }
 
@@ -334,6 +339,17 @@ void WorkcellService::WorkerLoop() {
       progress_ = f;
       progress_what_ = what;
     };
+    const bool calibration_job =
+        std::find(options_.calibration_jobs.begin(), options_.calibration_jobs.end(), job.name) !=
+        options_.calibration_jobs.end();
+    std::vector<std::string> items_before;  // the required items the calibration holds before the job
+    if (calibration_job) {
+      if (const auto before = calibration_.Current(); before.ok() && before->has_value()) {
+        for (const std::string& item : options_.required_calibration_items) {
+          if ((*before)->items.count(item) != 0) items_before.push_back(item);
+        }
+      }
+    }
     const JobSpec& spec = jobs_.at(job.name);
     Result<nlohmann::json> result = spec.run(ctx, job.args);
     nlohmann::json report;
@@ -355,16 +371,14 @@ void WorkcellService::WorkerLoop() {
       (void)devices_->StopAll();
     }
     (void)WriteFileAtomically((fs::path(ctx.run_dir) / "report.json").string(), report.dump(2) + "\n");
-    // What a calibration job left the calibration without (read before the lock: it reads files).
-    std::vector<std::string> missing;
-    const bool calibration_job =
-        std::find(options_.calibration_jobs.begin(), options_.calibration_jobs.end(), job.name) !=
-        options_.calibration_jobs.end();
+    // The items a calibration job dropped: there before it, gone after (read before the lock: it reads
+    // files; only this thread commits).
+    std::vector<std::string> dropped;
     if (result.ok() && calibration_job) {
-      const auto current = calibration_.Current();
-      if (current.ok() && current->has_value()) {
-        for (const std::string& item : options_.required_calibration_items) {
-          if ((*current)->items.count(item) == 0) missing.push_back(item);
+      const auto after = calibration_.Current();
+      if (after.ok() && after->has_value()) {
+        for (const std::string& item : items_before) {
+          if ((*after)->items.count(item) == 0) dropped.push_back(item);
         }
       }
     }
@@ -385,7 +399,7 @@ void WorkcellService::WorkerLoop() {
       } else {
         spdlog::info("service: job {} '{}' done, results in {}", job.id, job.name, ctx.run_dir);
       }
-      QueueMissingCalibrationLocked(job.name, missing);
+      QueueMissingCalibrationLocked(job.name, dropped);
       state_ = ServiceState::kIdle;
       state_reason_ = "ready";
     }

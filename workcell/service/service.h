@@ -64,9 +64,10 @@ struct ServiceOptions {
   bool recalibrate_when_stale = true;
   std::vector<std::string> calibration_jobs;  // queued (in order) when the calibration is missing/stale
   std::vector<std::string> required_calibration_items;  // e.g. robot1, robot2, rail, ptu-left, ptu-right
-  // The calibration job that makes each required item. After a calibration job, an item the calibration
-  // then lacks (a robot's new calibration drops the rail solved with the old arm) gets its job queued
-  // when recalibrate_when_stale (else a warning names the job to run), unless that job is queued already.
+  // The calibration job that makes each required item. An item a calibration job drops (held before it,
+  // not after: a robot's new calibration drops the rail solved with the old arm) gets its job queued
+  // after the calibration jobs waiting, before any other, when recalibrate_when_stale and no stop came
+  // (else a warning names the job to run), unless that job is queued already or is the one that ran.
   std::map<std::string, std::string> calibration_job_for_item;
   // Queued once at the first start, after any calibration jobs (e.g. the simulated day's scans).
   std::vector<std::pair<std::string, nlohmann::json>> startup_jobs;
@@ -94,9 +95,9 @@ class WorkcellService {
   void SetState(ServiceState s, const std::string& why);
   idi::Status StartUp();
   void WorkerLoop();
-  // With mu_ held, after a calibration job: queues the jobs of the items it left missing (see
+  // With mu_ held, after a calibration job: queues the jobs of the items it dropped (see
   // ServiceOptions::calibration_job_for_item).
-  void QueueMissingCalibrationLocked(const std::string& after_job, const std::vector<std::string>& missing);
+  void QueueMissingCalibrationLocked(const std::string& after_job, const std::vector<std::string>& dropped);
   void SafeStop(const std::string& why);
   std::string MakeRunDir(const std::string& job);
 

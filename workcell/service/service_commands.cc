@@ -33,11 +33,7 @@ Status RunService(const RunOptions& o, const CellFactory& make_cell) {
   so.recalibrate_when_stale = config.recalibrate_when_stale;
   so.calibration_jobs = cell.calibration_jobs;
   so.required_calibration_items = cell.calibration_items;
-  if (cell.calibration_items.size() == cell.calibration_jobs.size()) {
-    for (std::size_t k = 0; k < cell.calibration_items.size(); ++k) {
-      so.calibration_job_for_item[cell.calibration_items[k]] = cell.calibration_jobs[k];
-    }
-  }
+  so.calibration_job_for_item = cell.calibration_job_for_item;
   so.startup_jobs = cell.startup_jobs;
   so.exit_when_idle = config.exit_when_idle;
   WorkcellService service(so, cell.devices.get(), std::move(cell.jobs));
@@ -152,17 +148,23 @@ void AddClientFlags(CLI::App* cmd, ClientOptions* o) {
 
 std::string FormatDeviceHealth(const nlohmann::json& devices) {
   if (!devices.is_object()) return "";
-  std::string out = fmt::format(
-      "devices ({}{}):\n",
-      devices.value("backend", std::string("?")),
-      devices.value("busy", false) ? ", busy: a device operation is in progress, this is from before it" : "");
-  auto line = [&out](const char* kind, const nlohmann::json& d) {
+  // A field of the expected type, or `otherwise` (health is the service's own, but a client must not
+  // throw on an odd one).
+  auto text = [](const nlohmann::json& o, const char* key, const std::string& otherwise) {
+    const auto it = o.find(key);
+    return it != o.end() && it->is_string() ? it->get<std::string>() : otherwise;
+  };
+  const auto busy = devices.find("busy");
+  std::string out = fmt::format("devices ({}{}):\n",
+                                text(devices, "backend", "?"),
+                                busy != devices.end() && busy->is_boolean() && busy->get<bool>()
+                                    ? ", busy: a device operation is in progress, this is from before it"
+                                    : "");
+  auto line = [&](const char* kind, const nlohmann::json& d) {
     if (!d.is_object()) return;
-    std::string state;
-    if (d.contains("state") && d["state"].is_string()) {
-      state = d["state"].get<std::string>();
-    } else if (d.contains("ok") && d["ok"].is_boolean()) {
-      state = d["ok"].get<bool>() ? "ok" : "error";
+    std::string state = text(d, "state", "");
+    if (const auto ok = d.find("ok"); state.empty() && ok != d.end() && ok->is_boolean()) {
+      state = ok->get<bool>() ? "ok" : "error";
     }
     std::string rest;
     for (const auto& [key, value] : d.items()) {
@@ -172,15 +174,16 @@ std::string FormatDeviceHealth(const nlohmann::json& devices) {
     }
     out += fmt::format("  {} {}: {}{}\n",
                        kind,
-                       d.value("name", std::string("?")),
+                       text(d, "name", "?"),
                        state.empty() ? "?" : state,
                        rest.empty() ? "" : " (" + rest + ")");
   };
   for (const auto& [key, kind] : {std::pair{"arms", "arm"}, std::pair{"ptus", "ptu"}, std::pair{"cameras", "camera"}}) {
-    if (!devices.contains(key) || !devices[key].is_array()) continue;
-    for (const nlohmann::json& d : devices[key]) line(kind, d);
+    const auto list = devices.find(key);
+    if (list == devices.end() || !list->is_array()) continue;
+    for (const nlohmann::json& d : *list) line(kind, d);
   }
-  if (devices.contains("hand")) line("hand", devices["hand"]);
+  if (const auto hand = devices.find("hand"); hand != devices.end()) line("hand", *hand);
   return out;
 }
 

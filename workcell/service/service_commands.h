@@ -2,6 +2,7 @@
 #pragma once
 
 #include <functional>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -17,8 +18,8 @@ struct Cell {
   std::unique_ptr<DeviceSet> devices;
   std::vector<JobSpec> jobs;
   std::vector<std::string> calibration_jobs;      // run (in order) when the calibration is missing/stale
-  std::vector<std::string> calibration_items;     // what a complete calibration holds; item k is made by
-                                                  // calibration_jobs[k] when the two lists are as long
+  std::vector<std::string> calibration_items;     // what a complete calibration holds
+  std::map<std::string, std::string> calibration_job_for_item;       // the job that makes each item
   std::vector<std::pair<std::string, nlohmann::json>> startup_jobs;  // queued after the calibration check
 };
 using CellFactory = std::function<Result<Cell>(const WorkcellConfig& config)>;

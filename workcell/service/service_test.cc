@@ -5,12 +5,16 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
+#include <map>
+#include <mutex>
 #include <thread>
+#include <vector>
 
 #include "shared/runtime/systemd_notify.h"
 #include "shared/util/atomic_file.h"
@@ -361,6 +365,93 @@ TEST(ServiceTest, ACalibrationJobThatDropsAnItemQueuesThatItemsJob) {
     t.join();
     fs::remove_all(opt.state_dir);
   }
+}
+
+// Jobs that record the order they ran in; "cal-robot" commits robot1 and drops the rail, "cal-rail"
+// commits the rail, "cal-ptu" the ptu, "hold" waits until released.
+struct OrderedJobs {
+  std::mutex mu;
+  std::vector<std::string> order;
+  std::atomic<bool> release{false};
+  void Ran(const std::string& name) {
+    std::lock_guard<std::mutex> l(mu);
+    order.push_back(name);
+  }
+  std::vector<std::string> Order() {
+    std::lock_guard<std::mutex> l(mu);
+    return order;
+  }
+  JobSpec Committing(const std::string& name, std::map<std::string, std::string> items, std::vector<std::string> drop) {
+    JobSpec j;
+    j.name = name;
+    j.run = [this, name, items, drop](JobContext& ctx, const nlohmann::json&) -> Result<nlohmann::json> {
+      IDI_RETURN_IF_ERROR(ctx.calibration->Commit(items, std::time(nullptr), drop).status());
+      Ran(name);
+      return nlohmann::json::object();
+    };
+    return j;
+  }
+  std::vector<JobSpec> All() {
+    JobSpec hold;
+    hold.name = "hold";
+    hold.run = [this](JobContext&, const nlohmann::json&) -> Result<nlohmann::json> {
+      while (!release) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      Ran("hold");
+      return nlohmann::json::object();
+    };
+    JobSpec scan;
+    scan.name = "scan";
+    scan.run = [this](JobContext&, const nlohmann::json&) -> Result<nlohmann::json> {
+      Ran("scan");
+      return nlohmann::json::object();
+    };
+    return {hold,
+            scan,
+            Committing("cal-robot", {{"robot1", "a: 2\n"}}, {"rail"}),
+            Committing("cal-rail", {{"rail", "b: 2\n"}}, {}),
+            Committing("cal-ptu", {{"ptu", "c: 2\n"}}, {})};
+  }
+};
+
+// The dropped item's job goes before the jobs queued behind the calibration (a scan that needs the
+// rail), and an item that was missing before the job (the operator stopped its calibration) is not
+// queued by it.
+TEST(ServiceTest, ADroppedItemsJobGoesBeforeOtherJobsAndOnlyDroppedItemsAreQueued) {
+  FakeDevices dev;
+  ServiceOptions opt;
+  opt.state_dir = TempState("dropped_item_order");
+  opt.recalibrate_when_stale = true;
+  opt.calibration_jobs = {"cal-robot", "cal-rail"};
+  opt.required_calibration_items = {"robot1", "rail", "ptu"};
+  opt.calibration_job_for_item = {{"robot1", "cal-robot"}, {"rail", "cal-rail"}, {"ptu", "cal-ptu"}};
+  {
+    CalibrationStore store(opt.state_dir);
+    ASSERT_TRUE(store.Open().ok());
+    ASSERT_TRUE(store.Commit({{"robot1", "a: 1\n"}, {"rail", "b: 1\n"}}, std::time(nullptr)).ok());  // no ptu
+  }
+  // The calibration lacks the ptu, so the start-up queues the calibration jobs (here robot and rail;
+  // the ptu's job is not among them). Robot's drops the rail, whose job is queued already; the ptu,
+  // missing before it, is not queued by it.
+  OrderedJobs jobs;
+  WorkcellService svc(opt, &dev, jobs.All());
+  std::thread t([&] { (void)svc.Run(); });
+  ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kIdle && svc.StatusJson()["queue"].empty(); }));
+  const std::size_t at_start = jobs.Order().size();
+  EXPECT_EQ(jobs.Order(), (std::vector<std::string>{"cal-robot", "cal-rail"}));
+  // Then the operator queues a robot calibration between a job in progress and a scan.
+  EXPECT_TRUE(svc.Handle(Job("hold")).value("ok", false));
+  EXPECT_TRUE(svc.Handle(Job("cal-robot")).value("ok", false));
+  EXPECT_TRUE(svc.Handle(Job("scan")).value("ok", false));
+  jobs.release = true;
+  ASSERT_TRUE(WaitFor([&] { return jobs.Order().size() >= at_start + 4; })) << jobs.Order().size();
+  ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kIdle && svc.StatusJson()["queue"].empty(); }));
+  const std::vector<std::string> order = jobs.Order();
+  const std::vector<std::string> after(order.begin() + static_cast<std::ptrdiff_t>(at_start), order.end());
+  EXPECT_EQ(after, (std::vector<std::string>{"hold", "cal-robot", "cal-rail", "scan"}));
+  EXPECT_EQ(std::count(order.begin(), order.end(), "cal-ptu"), 0) << "the ptu was missing before, not dropped";
+  svc.RequestShutdown();
+  t.join();
+  fs::remove_all(opt.state_dir);
 }
 
 TEST(ServiceTest, FailedStartupIsAFaultAndMissingCalibrationQueuesCalibration) {
