@@ -190,14 +190,22 @@ Status WriteRobotCalibration(const std::string& path,
   return WriteFileAtomically(path, std::string(e.c_str()) + "\n");
 }
 
-Result<std::optional<unsigned>> RobotCalibrationSimSeed(const std::string& path) {
+namespace {
+
+// The YAML document in `path` (InvalidArgument naming the file when it does not parse).
+Result<YAML::Node> LoadYamlFile(const std::string& path) {
   IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(path));
-  YAML::Node root;
   try {
-    root = YAML::Load(text);
+    return YAML::Load(text);
   } catch (const YAML::Exception& ex) {
     return InvalidArgument(path + ": " + ex.what());
   }
+}
+
+}  // namespace
+
+Result<std::optional<unsigned>> RobotCalibrationSimSeed(const std::string& path) {
+  IDI_ASSIGN_OR_RETURN(const YAML::Node root, LoadYamlFile(path));
   if (!root.IsMap() || !root["sim_seed"]) return std::optional<unsigned>();
   try {
     return std::optional<unsigned>(root["sim_seed"].as<unsigned>());
@@ -216,13 +224,7 @@ Result<calib::ArmModel> LoadRobotCalibration(const std::string& path) {
   m.rail = p.Slice(kRx130ParamCount + kLaserParamCount + 3, kRailParamCount);
   // Optional (files written before it was added have none): the unknowns' correlation, which with
   // their std gives the arm model's covariance.
-  IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(path));
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::Exception& ex) {
-    return InvalidArgument(path + ": " + ex.what());
-  }
+  IDI_ASSIGN_OR_RETURN(const YAML::Node root, LoadYamlFile(path));
   const YAML::Node corr = root["correlation"];
   if (!corr) return m;
   const std::size_t n = p.size();
