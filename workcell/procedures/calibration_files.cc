@@ -84,6 +84,16 @@ void EmitStats(YAML::Emitter& e, const std::vector<std::pair<std::string, double
   e << YAML::EndMap;
 }
 
+// The YAML document in `path` (InvalidArgument naming the file when it does not parse).
+Result<YAML::Node> LoadYamlFile(const std::string& path) {
+  IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(path));
+  try {
+    return YAML::Load(text);
+  } catch (const YAML::Exception& ex) {
+    return InvalidArgument(path + ": " + ex.what());
+  }
+}
+
 }  // namespace
 
 Result<std::vector<calib::AimReading>> ReadRobotObservations(const std::string& path) {
@@ -189,20 +199,6 @@ Status WriteRobotCalibration(const std::string& path,
   if (!e.good()) return Internal(path + ": YAML emitter: " + e.GetLastError());
   return WriteFileAtomically(path, std::string(e.c_str()) + "\n");
 }
-
-namespace {
-
-// The YAML document in `path` (InvalidArgument naming the file when it does not parse).
-Result<YAML::Node> LoadYamlFile(const std::string& path) {
-  IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(path));
-  try {
-    return YAML::Load(text);
-  } catch (const YAML::Exception& ex) {
-    return InvalidArgument(path + ": " + ex.what());
-  }
-}
-
-}  // namespace
 
 Result<std::optional<unsigned>> RobotCalibrationSimSeed(const std::string& path) {
   IDI_ASSIGN_OR_RETURN(const YAML::Node root, LoadYamlFile(path));

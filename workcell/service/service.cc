@@ -286,7 +286,12 @@ idi::Status WorkcellService::Run() {
   return ended;
 }
 
-void WorkcellService::QueueMissingCalibrationLocked(const std::string& after_job,
+bool WorkcellService::IsCalibrationJob(const std::string& name) const {
+  return std::find(options_.calibration_jobs.begin(), options_.calibration_jobs.end(), name) !=
+         options_.calibration_jobs.end();
+}
+
+void WorkcellService::QueueDroppedCalibrationLocked(const std::string& after_job,
                                                     const std::vector<std::string>& dropped) {
   for (const std::string& item : dropped) {
     const auto it = options_.calibration_job_for_item.find(item);
@@ -302,10 +307,8 @@ void WorkcellService::QueueMissingCalibrationLocked(const std::string& after_job
     }
     // Before the jobs that need it (a scan queued behind the robot's calibration), after any
     // calibration jobs already waiting.
-    auto at = std::find_if(queue_.begin(), queue_.end(), [this](const QueuedJob& q) {
-      return std::find(options_.calibration_jobs.begin(), options_.calibration_jobs.end(), q.name) ==
-             options_.calibration_jobs.end();
-    });
+    auto at =
+        std::find_if(queue_.begin(), queue_.end(), [this](const QueuedJob& q) { return !IsCalibrationJob(q.name); });
     at = queue_.insert(at, {next_job_id_++, job, nlohmann::json::object()});
     spdlog::warn("service: job '{}' left the calibration without {}; queued job {} '{}'", after_job, item, at->id, job);
   }
@@ -339,9 +342,7 @@ void WorkcellService::WorkerLoop() {
       progress_ = f;
       progress_what_ = what;
     };
-    const bool calibration_job =
-        std::find(options_.calibration_jobs.begin(), options_.calibration_jobs.end(), job.name) !=
-        options_.calibration_jobs.end();
+    const bool calibration_job = IsCalibrationJob(job.name);
     std::vector<std::string> items_before;  // the required items the calibration holds before the job
     if (calibration_job) {
       if (const auto before = calibration_.Current(); before.ok() && before->has_value()) {
@@ -399,7 +400,7 @@ void WorkcellService::WorkerLoop() {
       } else {
         spdlog::info("service: job {} '{}' done, results in {}", job.id, job.name, ctx.run_dir);
       }
-      QueueMissingCalibrationLocked(job.name, dropped);
+      QueueDroppedCalibrationLocked(job.name, dropped);
       state_ = ServiceState::kIdle;
       state_reason_ = "ready";
     }

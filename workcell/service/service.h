@@ -95,9 +95,10 @@ class WorkcellService {
   void SetState(ServiceState s, const std::string& why);
   idi::Status StartUp();
   void WorkerLoop();
+  bool IsCalibrationJob(const std::string& name) const;  // one of options_.calibration_jobs
   // With mu_ held, after a calibration job: queues the jobs of the items it dropped (see
   // ServiceOptions::calibration_job_for_item).
-  void QueueMissingCalibrationLocked(const std::string& after_job, const std::vector<std::string>& dropped);
+  void QueueDroppedCalibrationLocked(const std::string& after_job, const std::vector<std::string>& dropped);
   void SafeStop(const std::string& why);
   std::string MakeRunDir(const std::string& job);
 
