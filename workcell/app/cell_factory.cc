@@ -446,9 +446,11 @@ Result<Cell> MakeSimCell(const WorkcellConfig& config) {
 
 // The service calls it from two threads: the run thread connects and homes (start-up, reset), the
 // control socket's thread stops and reads health. The drivers are not thread-safe, so one thread talks
-// to the devices at a time (io_), one device operation at a time: a stop during a reset waits for the
-// operation in progress (at most its timeout: a PTU's move home, 20 s), then the reset's remaining steps
-// are skipped (Cancelled) and every device is stopped. Health never waits: it is the snapshot taken
+// to the devices at a time (io_), one device operation at a time: a stop during a reset interrupts the
+// operation in progress when it waits for a move to end (a PTU's move home, the hand's initialisation:
+// it returns within about 50 ms, its device halted), else waits for it (a command's reply: at most the
+// reply timeout, 1 s; a camera's check frame: 3 s); then the reset's remaining steps are skipped
+// (Cancelled) and every device is stopped. Health never waits: it is the snapshot taken
 // after the last operation, marked busy while one runs.
 class HardwareDeviceSet final : public DeviceSet {
  public:
@@ -503,6 +505,11 @@ class HardwareDeviceSet final : public DeviceSet {
   }
   Status StopAll() override {
     stop_requested_ = true;  // before the lock: the operation in progress is the last one
+    // A wait for a move to end in that operation ends now (Cancelled, its device halted), not when the
+    // move does.
+    for (auto& a : arms_) a->Interrupt();
+    for (auto& p : ptus_) p->Interrupt();
+    if (hand_) hand_->Interrupt();
     std::lock_guard<std::mutex> lock(io_);
     Status first = Status::Ok();
     auto keep = [&first](Status st) {
@@ -511,6 +518,10 @@ class HardwareDeviceSet final : public DeviceSet {
     for (auto& a : arms_) keep(a->Stop());
     for (auto& p : ptus_) keep(p->Halt());
     if (hand_) keep(hand_->Stop());
+    // No operation is in progress (io_ is held) and stop_requested_ refuses the next until a Connect.
+    for (auto& a : arms_) a->ClearInterrupt();
+    for (auto& p : ptus_) p->ClearInterrupt();
+    if (hand_) hand_->ClearInterrupt();
     // The cameras move nothing: they stay open (health goes on showing them).
     TakeHealthSnapshot();
     return first;

@@ -14,6 +14,7 @@
 
 #include "shared/util/atomic_file.h"
 #include "workcell/app/scan_command.h"
+#include "workcell/devices/barrett/barrett_emulator.h"
 #include "workcell/devices/ptu/ptu_emulator.h"
 #include "workcell/devices/staubli/val3_emulator.h"
 
@@ -250,9 +251,9 @@ TEST_F(CellTest, UnknownBackendAndUnreachableHardwareAreClearErrors) {
 }
 
 // The service homes the cell on its run thread while the control socket's thread may stop it. A stop
-// during homing waits for the device operation in progress (never talks to a driver another thread is
-// using), then the rest of the homing is skipped and every device is halted; health meanwhile answers
-// at once, marked busy.
+// during homing waits for the command in progress (never talks to a driver another thread is using),
+// ends the wait for the move that follows (the unit halted), skips the rest of the homing and halts
+// every device; health meanwhile answers at once, marked busy.
 TEST_F(CellTest, AStopDuringHomingEndsItAfterTheOperationInProgress) {
   EmulatedCell e;
   ASSERT_TRUE(e.Start(dir_));
@@ -276,7 +277,8 @@ TEST_F(CellTest, AStopDuringHomingEndsItAfterTheOperationInProgress) {
   home.join();
 
   EXPECT_EQ(homed.code(), StatusCode::kCancelled) << homed.ToString();
-  EXPECT_NE(homed.message().find("stopped by the operator"), std::string::npos) << homed.message();
+  EXPECT_NE(homed.message().find("ptu-left: waiting for 'A': interrupted by a stop"), std::string::npos)
+      << homed.message();
   // The right unit was not moved after the stop; both were halted.
   const std::vector<std::string> after = e.right->commands();
   EXPECT_TRUE(std::none_of(after.begin() + static_cast<std::ptrdiff_t>(right_commands),
@@ -293,6 +295,42 @@ TEST_F(CellTest, AStopDuringHomingEndsItAfterTheOperationInProgress) {
   // A reset connects again and homes the whole cell.
   ASSERT_TRUE(cell->devices->Connect().ok());
   EXPECT_TRUE(cell->devices->Home().ok());
+}
+
+// A stop during a long device operation does not wait for it: the hand's initialisation (HI drives
+// every motor to its stops, up to 30 s) is aborted and homing ends Cancelled at once, not with the
+// initialisation's Timeout 30 s later.
+TEST_F(CellTest, AStopDuringTheHandsInitialisationAbortsItAtOnce) {
+  EmulatedCell e;
+  ASSERT_TRUE(e.Start(dir_));
+  BarrettEmulatorOptions slow;
+  slow.hi_duration = std::chrono::minutes(2);
+  auto hand = BarrettEmulator::Start(slow);
+  ASSERT_TRUE(hand.ok()) << hand.status().ToString();
+  e.config.hand.device = (*hand)->port_path();
+  auto cell = MakeCell(e.config);
+  ASSERT_TRUE(cell.ok()) << cell.status().ToString();
+  ASSERT_TRUE(cell->devices->Connect().ok());
+
+  Status homed = Status::Ok();
+  std::thread home([&] { homed = cell->devices->Home(); });
+  const auto initialising = [&] {
+    const auto commands = (*hand)->commands();
+    return std::find(commands.begin(), commands.end(), "HI") != commands.end();
+  };
+  for (int k = 0; k < 2500 && !initialising(); ++k) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  ASSERT_TRUE(initialising()) << "the hand never got HI";
+  const Status stopped = cell->devices->StopAll();
+  home.join();
+
+  EXPECT_EQ(homed.code(), StatusCode::kCancelled) << homed.ToString();
+  EXPECT_NE(homed.message().find("interrupted by a stop"), std::string::npos) << homed.message();
+  EXPECT_EQ((*hand)->aborts(), 1);
+  EXPECT_GE((*hand)->stops(), 1);
+  EXPECT_TRUE(stopped.ok()) << stopped.ToString();
+  EXPECT_GE(e.left->halts(), 1);
+  EXPECT_GE(e.right->halts(), 1);
+  EXPECT_FALSE(cell->devices->Health().at("busy").get<bool>());
 }
 
 // The configured cameras are opened when the cell connects, not ignored: a camera node that is not

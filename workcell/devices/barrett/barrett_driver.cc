@@ -118,7 +118,9 @@ Status BarrettDriver::EnsureConnected() {
   return Status::Ok();
 }
 
-Result<BarrettReply> BarrettDriver::Transact(const std::string& text, std::chrono::milliseconds timeout) {
+Result<BarrettReply> BarrettDriver::Transact(const std::string& text,
+                                             std::chrono::milliseconds timeout,
+                                             bool interruptible) {
   if (!port_) return FailedPrecondition(options_.name + ": not connected");
   ++counters_.commands;
   const Status written = port_->Write(BarrettCommandBytes(text), options_.reply_timeout);
@@ -126,11 +128,14 @@ Result<BarrettReply> BarrettDriver::Transact(const std::string& text, std::chron
   const auto deadline = BarrettSteadyClock::now() + timeout;
   std::string last_block;
   while (true) {
+    if (interruptible && interrupt_.requested()) return Abort(text);
     const auto left = std::max(std::chrono::milliseconds(0), std::chrono::duration_cast<std::chrono::milliseconds>(
                                                                  deadline - BarrettSteadyClock::now()));
-    auto block = port_->ReadUntil(kBarrettPrompt, left);
+    const auto wait = interruptible ? MotionInterrupt::Slice(left) : left;
+    auto block = port_->ReadUntil(kBarrettPrompt, wait);
     if (!block.ok()) {
       if (block.status().code() == StatusCode::kTimeout) {
+        if (wait < left) continue;  // a slice of the wait ended, not the wait
         ++counters_.timeouts;
         needs_resync_ = true;
         return Timeout(options_.name + ": no prompt after '" + text + "' within " + std::to_string(timeout.count()) +
@@ -159,7 +164,25 @@ Result<BarrettReply> BarrettDriver::Transact(const std::string& text, std::chron
   }
 }
 
+Status BarrettDriver::Abort(const std::string& text) {
+  // The hand runs one supervisory command at a time and takes no other (a T would wait for the end of
+  // this one); Control-C ends it at once: every motor stops, "ERR 16384", then the prompt (BH8-Series
+  // User's Manual D3000, termination case 4). The aborted command's output is read up to that prompt so
+  // that the next command is in step; without it, the next command resynchronises first.
+  std::string outcome = "; Control-C sent";
+  const Status written = port_->Write("\x03", options_.reply_timeout);
+  if (!written.ok()) {
+    needs_resync_ = true;
+    outcome = "; Control-C could not be sent: " + written.message();
+  } else if (!port_->ReadUntil(kBarrettPrompt, options_.reply_timeout).ok()) {
+    needs_resync_ = true;
+    outcome += ", no prompt after it";
+  }
+  return Cancelled(options_.name + ": '" + text + "' interrupted by a stop" + outcome);
+}
+
 Status BarrettDriver::NoteFailure(Status status) {
+  if (status.code() == StatusCode::kCancelled) return status;  // a stop, not a failure of the hand
   ++consecutive_failures_;
   if (status.code() == StatusCode::kTimeout || status.code() == StatusCode::kDeviceError) needs_resync_ = true;
   if (status.code() == StatusCode::kIoError || consecutive_failures_ >= options_.max_consecutive_failures) {
@@ -175,7 +198,9 @@ Status BarrettDriver::Motion(const std::string& text, const std::string& what) {
     return FailedPrecondition(options_.name + ": " + what + " before Initialize (HI): the hand must be initialised "
                               "after power-up");
   }
-  auto reply = Transact(text, options_.motion_timeout);
+  if (interrupt_.requested())
+    return Cancelled(options_.name + ": " + what + " refused: a stop is in force; nothing sent");
+  auto reply = Transact(text, options_.motion_timeout, /*interruptible=*/true);
   if (!reply.ok()) {
     const Status failed = NoteFailure(reply.status().WithContext(what));
     const Status stopped = Stop();
@@ -186,8 +211,10 @@ Status BarrettDriver::Motion(const std::string& text, const std::string& what) {
 }
 
 Status BarrettDriver::Initialize() {
+  if (interrupt_.requested())
+    return Cancelled(options_.name + ": initialise refused: a stop is in force; nothing sent");
   IDI_RETURN_IF_ERROR(EnsureConnected());
-  auto reply = Transact("HI", options_.init_timeout);
+  auto reply = Transact("HI", options_.init_timeout, /*interruptible=*/true);
   if (!reply.ok()) {
     initialized_ = false;
     const Status failed = NoteFailure(reply.status().WithContext("initialise"));

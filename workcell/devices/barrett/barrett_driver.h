@@ -26,6 +26,7 @@
 #include "shared/drivers/serial/serial_port.h"
 #include "shared/hal/arm.h"
 #include "shared/hal/clock.h"
+#include "shared/util/motion_interrupt.h"
 #include "workcell/devices/barrett/barrett_codec.h"
 
 namespace idi::workcell {
@@ -77,13 +78,23 @@ class BarrettDriver final : public hal::GripperDevice {
   Result<hal::GripperState> Read() override;
   Status Stop() override;
 
+  // An operator's stop from another thread (shared/util/motion_interrupt.h): an Initialize, Open,
+  // Close or SetSpread waiting for its motion to end aborts it (Control-C: the motors stop where they
+  // are), sends the stop (T) and returns Cancelled within about 50 ms plus the hand's answer; motions
+  // are refused, nothing sent, until ClearInterrupt. Both thread-safe.
+  void Interrupt() { interrupt_.Request(); }
+  void ClearInterrupt() { interrupt_.Clear(); }
+
   BarrettState state() const { return state_; }
   const BarrettCounters& counters() const { return counters_; }
 
  private:
-  Result<BarrettReply> Transact(const std::string& text, std::chrono::milliseconds timeout);
+  // `interruptible`: the wait for the prompt is a wait for motion, which an interrupt ends (Cancelled).
+  Result<BarrettReply> Transact(const std::string& text, std::chrono::milliseconds timeout, bool interruptible = false);
   Status EnsureConnected();
   Status Resync();
+  // Ends the command `text` in progress (Control-C); Cancelled, saying whether the hand confirmed it.
+  Status Abort(const std::string& text);
   Status Motion(const std::string& text, const std::string& what);
   Status NoteFailure(Status status);
   Result<long> ReadCounts(unsigned motor);
@@ -97,6 +108,7 @@ class BarrettDriver final : public hal::GripperDevice {
   bool needs_resync_ = false;
   bool connected_once_ = false;
   bool initialized_ = false;
+  MotionInterrupt interrupt_;
 };
 
 }  // namespace idi::workcell

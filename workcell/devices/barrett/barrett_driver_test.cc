@@ -82,6 +82,49 @@ TEST_F(BarrettDriverTest, ClosingOnAnObjectStallsThoseFingers) {
   EXPECT_NEAR(state->finger_rad[2], 17800 / options_.finger_counts_per_rad, 1e-9);
 }
 
+// An operator's stop from another thread ends a slow close at once: the hand takes no other command
+// while one runs, so the driver aborts it (Control-C: the fingers stop where they are), then sends the
+// stop. Cancelled, not a Timeout; motions are refused until the interrupt is cleared; the hand then
+// opens again, in step.
+TEST_F(BarrettDriverTest, AnInterruptAbortsTheMotionInProgressAndStopsTheHand) {
+  BarrettEmulatorOptions slow;
+  slow.speed_counts_per_s = 2000;  // a close takes about 9 s
+  auto emulator = BarrettEmulator::Start(slow);
+  ASSERT_TRUE(emulator.ok()) << emulator.status().ToString();
+  emulator_ = std::move(emulator).value();
+  options_.port = emulator_->port_path();
+  options_.motion_timeout = milliseconds(30'000);
+  driver_ = std::make_unique<BarrettDriver>(options_, &clock_);
+  ASSERT_TRUE(driver_->Initialize().ok());
+
+  Status closed = Status::Ok();
+  std::thread closer([&] { closed = driver_->Close(); });
+  for (int k = 0; k < 2000 && emulator_->positions()[0] < 20; ++k) std::this_thread::sleep_for(milliseconds(2));
+  ASSERT_GE(emulator_->positions()[0], 20) << "the fingers never started closing";
+  driver_->Interrupt();
+  closer.join();
+  EXPECT_EQ(closed.code(), StatusCode::kCancelled) << closed.ToString();
+  EXPECT_TRUE(BarrettMessageHas(closed, "barrett-hand")) << closed.message();
+  EXPECT_TRUE(BarrettMessageHas(closed, "interrupted by a stop; Control-C sent")) << closed.message();
+  EXPECT_TRUE(BarrettMessageHas(closed, "stop sent")) << closed.message();
+  EXPECT_EQ(emulator_->aborts(), 1);
+  EXPECT_GE(emulator_->stops(), 1);
+  const long stopped_at = emulator_->positions()[0];
+  EXPECT_LT(stopped_at, 17800);
+  EXPECT_NE(driver_->state(), BarrettState::kFault);  // a stop is not a failure of the hand
+
+  const std::size_t sent = emulator_->commands().size();
+  const Status refused = driver_->Open();
+  EXPECT_EQ(refused.code(), StatusCode::kCancelled) << refused.ToString();
+  EXPECT_TRUE(BarrettMessageHas(refused, "nothing sent")) << refused.message();
+  EXPECT_EQ(emulator_->commands().size(), sent);
+  EXPECT_EQ(emulator_->positions()[0], stopped_at);
+
+  driver_->ClearInterrupt();
+  ASSERT_TRUE(driver_->Open().ok());
+  EXPECT_EQ(emulator_->positions()[0], 0);
+}
+
 TEST_F(BarrettDriverTest, SpreadOutOfRangeIsRefusedBeforeSending) {
   ASSERT_TRUE(driver_->Initialize().ok());
   const std::size_t before = emulator_->commands().size();

@@ -71,6 +71,11 @@ bool BarrettEmulator::initialized() const {
   std::lock_guard lock(mu_);
   return initialized_;
 }
+int BarrettEmulator::aborts() const {
+  std::lock_guard lock(mu_);
+  return aborts_;
+}
+
 int BarrettEmulator::stops() const {
   std::lock_guard lock(mu_);
   return stops_;
@@ -126,6 +131,22 @@ void BarrettEmulator::HandleBytes(const char* data, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i) {
     const char c = data[i];
     if (c == '\n') continue;
+    if (c == '\x03') {
+      // Control-C ends the command in progress: every motor stops where it is, status 16384, then the
+      // prompt and any input that waited. Ignored when no command runs.
+      if (busy_) {
+        for (std::size_t m = 0; m < 4; ++m) target_[m] = std::lround(position_[m] = std::round(position_[m]));
+        busy_ = false;
+        ++aborts_;
+        Finish("ERR 16384\r\n");
+        while (!busy_ && !pending_lines_.empty()) {
+          const std::string next = pending_lines_.front();
+          pending_lines_.pop_front();
+          Execute(next);
+        }
+      }
+      continue;
+    }
     Send(std::string(1, c == '\r' ? '\r' : c) + (c == '\r' ? "\n" : ""));
     if (c != '\r') {
       line_ += c;

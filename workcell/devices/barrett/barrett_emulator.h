@@ -1,10 +1,11 @@
 // A BH8-262 hand behind a pseudo-terminal, for driver tests: supervisory mode as described in
 // ../shared/reference/device-protocols.md §3 and Barrett's BH8-262 supervisory notes - input echoed,
 // one command per CR-ended line, output and any "ERR <code>" then the prompt "=> ", commands run one
-// at a time (input that arrives during a motion waits). HI, O, C, M <pos>, T, FGET/FSET, PGET/PSET,
-// RESET with the motor prefixes 1-3, G, S. Fingers closing on an object stall there (the inner link
-// stops; §3.5). The error codes it prints are this emulator's own (1 unknown command, 2 bad
-// argument, 3 not initialised); the driver reports any code it is given.
+// at a time (input that arrives during a motion waits), Control-C (0x03) aborts the command in progress
+// (every motor stops, "ERR 16384", the prompt; BH8-Series User's Manual D3000, termination case 4). HI, O, C, M <pos>,
+// T, FGET/FSET, PGET/PSET, RESET with the motor prefixes 1-3, G, S. Fingers closing on an object stall there (the inner
+// link stops; §3.5). The error codes it prints are this emulator's own (1 unknown command, 2 bad argument, 3 not
+// initialised); the driver reports any code it is given.
 //
 // Faults: power-up banner, noise before a reply, an error reply, a hand that stops answering, a
 // power cycle (uninitialised afterwards).
@@ -52,6 +53,7 @@ class BarrettEmulator {
   std::array<long, 4> positions() const;  // F1, F2, F3, spread (counts)
   bool initialized() const;
   int stops() const;
+  int aborts() const;  // commands ended by Control-C
   std::vector<std::string> commands() const;
 
  private:
@@ -73,7 +75,8 @@ class BarrettEmulator {
   bool silent_ = false;
   bool seen_input_ = false;
   bool initialized_ = false;
-  bool busy_ = false;  // a motion command awaits its prompt
+  bool busy_ = false;
+  int aborts_ = 0;  // a motion command awaits its prompt
   std::chrono::steady_clock::time_point busy_until_{};
   std::array<double, 4> position_{};
   std::array<long, 4> target_{};

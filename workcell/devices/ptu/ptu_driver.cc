@@ -188,7 +188,10 @@ Status PtuDriver::Resync() {
   return Status::Ok();
 }
 
-Result<PtuReply> PtuDriver::Transact(const std::string& command, Expect expect, std::chrono::milliseconds timeout) {
+Result<PtuReply> PtuDriver::Transact(const std::string& command,
+                                     Expect expect,
+                                     std::chrono::milliseconds timeout,
+                                     bool interruptible) {
   if (!port_) {
     return FailedPrecondition(options_.name + ": not connected");
   }
@@ -200,11 +203,17 @@ Result<PtuReply> PtuDriver::Transact(const std::string& command, Expect expect, 
   const auto deadline = PtuSteadyClock::now() + timeout;
   std::string last_unrecognised;
   while (true) {
+    if (interruptible && interrupt_.requested()) {
+      needs_resync_ = true;  // the reply may still come
+      return Cancelled(options_.name + ": waiting for " + Quote(command) + ": interrupted by a stop");
+    }
     const auto left = std::max(std::chrono::milliseconds(0), std::chrono::duration_cast<std::chrono::milliseconds>(
                                                                  deadline - PtuSteadyClock::now()));
-    auto line = port_->ReadLine(left);
+    const auto wait = interruptible ? MotionInterrupt::Slice(left) : left;
+    auto line = port_->ReadLine(wait);
     if (!line.ok()) {
       if (line.status().code() == StatusCode::kTimeout) {
+        if (wait < left) continue;  // a slice of the wait ended, not the wait
         ++counters_.timeouts;
         return Timeout(options_.name + ": no reply to " + Quote(command) + " within " +
                        std::to_string(timeout.count()) + " ms" +
@@ -276,8 +285,9 @@ Result<double> PtuDriver::QueryDouble(PtuAxis axis, PtuQuantity quantity) {
 }
 
 Status PtuDriver::NoteFailure(Status status) {
-  ++consecutive_failures_;
   const StatusCode code = status.code();
+  if (code == StatusCode::kCancelled) return status;  // a stop, not a failure of the unit
+  ++consecutive_failures_;
   if (code == StatusCode::kTimeout || code == StatusCode::kDeviceError) {
     needs_resync_ = true;
   }
@@ -360,6 +370,7 @@ Status PtuDriver::MoveTo(double pan_rad, double tilt_rad, std::chrono::milliseco
   if (timeout.count() <= 0) {
     return InvalidArgument(options_.name + ": MoveTo timeout must be positive");
   }
+  if (interrupt_.requested()) return Cancelled(options_.name + ": move refused: a stop is in force; nothing sent");
   IDI_RETURN_IF_ERROR(EnsureReady());
   const double pr = PtuArcSecondsToRad(pan_arcsec_), tr = PtuArcSecondsToRad(tilt_arcsec_);
   // Nearest position; the limit check is on positions, as the unit does it.
@@ -383,7 +394,7 @@ Status PtuDriver::MoveTo(double pan_rad, double tilt_rad, std::chrono::milliseco
     if (!ack.ok()) return HaltAfter(NoteFailure(ack.status()));
   }
   // Await completion: the unit answers '*' when both axes have stopped.
-  auto done = Transact(PtuCommand("A"), Expect::kAck, timeout);
+  auto done = Transact(PtuCommand("A"), Expect::kAck, timeout, /*interruptible=*/true);
   if (!done.ok()) {
     const Status s = done.status().code() == StatusCode::kTimeout
                          ? Timeout(options_.name + ": move to pan " + std::to_string(p) + ", tilt " + std::to_string(t) +

@@ -26,6 +26,7 @@
 #include "shared/drivers/serial/serial_port.h"
 #include "shared/hal/clock.h"
 #include "shared/hal/pan_tilt.h"
+#include "shared/util/motion_interrupt.h"
 #include "workcell/devices/ptu/ptu_codec.h"
 
 namespace idi::workcell {
@@ -80,6 +81,12 @@ class PtuDriver final : public hal::PanTiltDevice {
   // Raw positions (pan, tilt) as the unit reports them.
   Result<std::pair<int32_t, int32_t>> ReadPositions();
 
+  // An operator's stop from another thread (shared/util/motion_interrupt.h): a MoveTo waiting for its
+  // move to end returns Cancelled within about 50 ms and halts the unit; moves are refused, nothing
+  // sent, until ClearInterrupt. Both thread-safe.
+  void Interrupt() { interrupt_.Request(); }
+  void ClearInterrupt() { interrupt_.Clear(); }
+
   PtuState state() const { return state_; }
   const PtuCounters& counters() const { return counters_; }
 
@@ -89,7 +96,11 @@ class PtuDriver final : public hal::PanTiltDevice {
   Status InitializeOnce();
   Status EnsureReady();
   Status Resync();
-  Result<PtuReply> Transact(const std::string& command, Expect expect, std::chrono::milliseconds timeout);
+  // `interruptible`: the wait for the reply is a wait for motion, which an interrupt ends (Cancelled).
+  Result<PtuReply> Transact(const std::string& command,
+                            Expect expect,
+                            std::chrono::milliseconds timeout,
+                            bool interruptible = false);
   Result<int32_t> QueryInt(PtuAxis axis, PtuQuantity quantity);
   Result<double> QueryDouble(PtuAxis axis, PtuQuantity quantity);
   // Records a failed operation: counts it, escalates to kFault past the threshold.
@@ -108,6 +119,7 @@ class PtuDriver final : public hal::PanTiltDevice {
   bool initialized_once_ = false;
   std::string pan_resolution_text_;  // PR's value text, to recognise the resync probe's reply
   std::vector<PtuAxis> pending_limit_hits_;
+  MotionInterrupt interrupt_;
   // From the unit: positions and arc-seconds per position.
   int32_t pan_min_ = 0, pan_max_ = 0, tilt_min_ = 0, tilt_max_ = 0;
   double pan_arcsec_ = 0, tilt_arcsec_ = 0;

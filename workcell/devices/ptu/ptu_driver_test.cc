@@ -82,6 +82,43 @@ TEST_F(PtuDriverTest, MoveToQuantisesToPositionsAndReadsBack) {
   EXPECT_EQ(driver_->counters().timeouts, 0u);
 }
 
+// An operator's stop from another thread ends the wait for a long move at once (the move would take
+// 15 s, longer than the wait allowed): Cancelled, not a Timeout, and the unit halted part-way. Moves are
+// refused until the interrupt is cleared; then the driver moves again (the late await reply skipped).
+TEST_F(PtuDriverTest, AnInterruptEndsTheWaitForAMoveAndHaltsTheUnit) {
+  PtuEmulatorOptions options;
+  options.chatter_on_first_input = false;
+  options.speed_pos_per_s = 200;
+  StartEmulator(options);
+  ASSERT_TRUE(driver_->Connect().ok());
+  const double res = PtuArcSecondsToRad(185.1428);
+  Status moved = Status::Ok();
+  std::thread mover([&] { moved = driver_->MoveTo(3000 * res, 0.0, milliseconds(10'000)); });
+  for (int k = 0; k < 2000 && emulator_->pan_position() < 20; ++k) std::this_thread::sleep_for(milliseconds(2));
+  ASSERT_GE(emulator_->pan_position(), 20) << "the unit never started moving";
+  driver_->Interrupt();
+  mover.join();
+  EXPECT_EQ(moved.code(), StatusCode::kCancelled) << moved.ToString();
+  EXPECT_TRUE(PtuMessageHas(moved, "ptu-left")) << moved.message();
+  EXPECT_TRUE(PtuMessageHas(moved, "interrupted by a stop")) << moved.message();
+  EXPECT_TRUE(PtuMessageHas(moved, "halt sent")) << moved.message();
+  EXPECT_GE(emulator_->halts(), 1);
+  const int32_t halted_at = emulator_->pan_position();
+  EXPECT_LT(halted_at, 3000);
+  EXPECT_EQ(driver_->state(), PtuState::kReady);  // a stop is not a failure of the unit
+
+  const std::size_t sent = emulator_->commands().size();
+  const Status refused = driver_->MoveTo(0.0, 0.0, milliseconds(10'000));
+  EXPECT_EQ(refused.code(), StatusCode::kCancelled) << refused.ToString();
+  EXPECT_TRUE(PtuMessageHas(refused, "nothing sent")) << refused.message();
+  EXPECT_EQ(emulator_->commands().size(), sent);
+  EXPECT_EQ(emulator_->pan_position(), halted_at);
+
+  driver_->ClearInterrupt();
+  ASSERT_TRUE(driver_->MoveTo((halted_at - 10) * res, 0.0, milliseconds(10'000)).ok());
+  EXPECT_EQ(emulator_->pan_position(), halted_at - 10);
+}
+
 TEST_F(PtuDriverTest, OutOfRangeIsRefusedBeforeAnythingIsSent) {
   ASSERT_TRUE(driver_->Connect().ok());
   const std::size_t before = emulator_->commands().size();

@@ -306,6 +306,7 @@ Status StaubliDriver::MoveJoints(const Joints& q_rad, const hal::MoveOptions& op
                       StaubliFixed(RadToDeg(options_.limits.min[i]), 1) + ", " +
                       StaubliFixed(RadToDeg(options_.limits.max[i]), 1) + "] deg (model convention); nothing sent");
   }
+  if (interrupt_.requested()) return Cancelled(options_.name + ": move refused: a stop is in force; nothing sent");
   IDI_RETURN_IF_ERROR(EnsureConnected());
   const ControllerJointsDeg target = ModelRadToControllerDeg(q_rad);
   std::vector<double> args = {options.speed_fraction * 100.0};
@@ -320,6 +321,7 @@ Status StaubliDriver::MoveJoints(const Joints& q_rad, const hal::MoveOptions& op
   double error_deg = 0;
   while (true) {
     std::this_thread::sleep_for(options_.poll_period);
+    if (interrupt_.requested()) return StopAfter(Cancelled(options_.name + ": move interrupted by a stop"));
     auto reply = Request(Val3Verb::kJoints, {}, options_.reply_timeout);
     if (!reply.ok()) return StopAfter(NoteFailure(reply.status().WithContext("during a move")));
     auto joints = DecodeVal3Joints(reply.value());
@@ -371,6 +373,7 @@ Status StaubliDriver::MoveTo(double position_mm, const hal::MoveOptions& options
                       StaubliFixed(options_.rail_min_mm, 1) + ", " + StaubliFixed(options_.rail_max_mm, 1) +
                       "] mm; nothing sent");
   }
+  if (interrupt_.requested()) return Cancelled(options_.name + ": rail move refused: a stop is in force; nothing sent");
   IDI_RETURN_IF_ERROR(EnsureConnected());
   if (!has_rail_) {
     return FailedPrecondition(options_.name + ": this controller drives no rail (HELLO said has_rail 0)");
@@ -382,6 +385,7 @@ Status StaubliDriver::MoveTo(double position_mm, const hal::MoveOptions& options
   const auto grace_end = start + 10 * options_.poll_period;
   while (true) {
     std::this_thread::sleep_for(options_.poll_period);
+    if (interrupt_.requested()) return StopAfter(Cancelled(options_.name + ": rail move interrupted by a stop"));
     auto reply = Request(Val3Verb::kRail, {}, options_.reply_timeout);
     if (!reply.ok()) return StopAfter(NoteFailure(reply.status().WithContext("during a rail move")));
     auto rail = DecodeVal3Rail(reply.value());

@@ -25,6 +25,7 @@
 #include "shared/drivers/serial/serial_port.h"
 #include "shared/hal/arm.h"
 #include "shared/hal/clock.h"
+#include "shared/util/motion_interrupt.h"
 #include "workcell/devices/staubli/val3_protocol.h"
 
 namespace idi::workcell {
@@ -83,6 +84,12 @@ class StaubliDriver final : public hal::ArmDevice, public hal::RailDevice {
   Status Heartbeat();
   Result<Val3Status> ReadStatus();
 
+  // An operator's stop from another thread (shared/util/motion_interrupt.h): a MoveJoints or MoveTo
+  // waiting for its move to end returns Cancelled at its next poll and stops the arm; moves are refused,
+  // nothing sent, until ClearInterrupt. Both thread-safe.
+  void Interrupt() { interrupt_.Request(); }
+  void ClearInterrupt() { interrupt_.Clear(); }
+
   bool has_rail() const { return has_rail_; }
   StaubliState state() const { return state_; }
   const StaubliCounters& counters() const { return counters_; }
@@ -103,6 +110,7 @@ class StaubliDriver final : public hal::ArmDevice, public hal::RailDevice {
   bool has_rail_ = false;
   bool connected_once_ = false;
   int consecutive_failures_ = 0;
+  MotionInterrupt interrupt_;
 };
 
 // Connects a TCP stream socket to host:port within `timeout` (TCP_NODELAY set). Returns the descriptor.

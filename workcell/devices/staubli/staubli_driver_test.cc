@@ -75,6 +75,40 @@ TEST_F(StaubliDriverTest, MovesAndReadsJointsInTheModelConvention) {
   EXPECT_TRUE(status->powered);
 }
 
+// An operator's stop from another thread ends the wait for a slow move at the next poll: Cancelled (not
+// a Timeout), the arm stopped part-way. Moves are refused until the interrupt is cleared.
+TEST_F(StaubliDriverTest, AnInterruptEndsTheWaitForAMoveAndStopsTheArm) {
+  Val3EmulatorOptions options;
+  options.joint_speed_deg_per_s = 5;  // the move below takes seconds
+  StartServer(options);
+  ASSERT_TRUE(driver_->Connect().ok());
+  const ControllerJointsDeg start = server_->joints_deg();
+  Status moved = Status::Ok();
+  std::thread mover([&] { moved = driver_->MoveJoints(kStaubliTarget, Move(1.0, milliseconds(30'000))); });
+  for (int k = 0; k < 2000 && !server_->moving(); ++k) std::this_thread::sleep_for(milliseconds(2));
+  ASSERT_TRUE(server_->moving()) << "the arm never started moving";
+  driver_->Interrupt();
+  mover.join();
+  EXPECT_EQ(moved.code(), StatusCode::kCancelled) << moved.ToString();
+  EXPECT_TRUE(StaubliMessageHas(moved, "arm1")) << moved.message();
+  EXPECT_TRUE(StaubliMessageHas(moved, "interrupted by a stop")) << moved.message();
+  EXPECT_TRUE(StaubliMessageHas(moved, "stop sent")) << moved.message();
+  EXPECT_GE(server_->stop_requests(), 1);
+  EXPECT_FALSE(server_->moving());
+  const ControllerJointsDeg target = ModelRadToControllerDeg(kStaubliTarget);
+  EXPECT_GT(std::abs(server_->joints_deg()[1] - target[1]), 1.0) << "the arm was not stopped part-way";
+  EXPECT_EQ(driver_->state(), StaubliState::kReady);
+
+  const std::size_t sent = server_->verbs().size();
+  const Status refused = driver_->MoveTo(100.0, Move(1.0));
+  EXPECT_EQ(refused.code(), StatusCode::kCancelled) << refused.ToString();
+  EXPECT_TRUE(StaubliMessageHas(refused, "nothing sent")) << refused.message();
+  EXPECT_EQ(server_->verbs().size(), sent);
+
+  driver_->ClearInterrupt();
+  ASSERT_TRUE(driver_->MoveJoints(ControllerDegToModelRad(start), Move(1.0, milliseconds(30'000))).ok());
+}
+
 TEST_F(StaubliDriverTest, OutOfRangeJointsAreRefusedBeforeSending) {
   ASSERT_TRUE(driver_->Connect().ok());
   Joints q{};
