@@ -58,6 +58,12 @@ TEST(RawlogExportTest, WritesImagesMrptReadsBack) {
   // The same file through MRPT's camera sensor (grabber "rawlog"): what a replayed FireWire camera gives.
   hal::SimClock clock;
   drivers::MrptCamera cam({"right", "rawlog", {{"rawlog_file", path}, {"rawlog_camera_sensor_label", "right"}}}, &clock);
+  // An exposure asked of a grabber without exposure control is refused, not ignored.
+  hal::CameraSettings short_exposure;
+  short_exposure.exposure_us = 2000;
+  const Status refused = cam.Start(short_exposure);
+  EXPECT_EQ(refused.code(), StatusCode::kFailedPrecondition) << refused.ToString();
+  EXPECT_NE(refused.message().find("exposure control needs the dc1394 grabber"), std::string::npos);
   ASSERT_TRUE(cam.Start({}).ok());
   const auto img = cam.Grab(std::chrono::milliseconds(5000));
   ASSERT_TRUE(img.ok()) << img.status().ToString();

@@ -122,13 +122,24 @@ Result<WorkcellConfig> ParseWorkcellConfig(const std::string& text, const std::s
       IDI_ASSIGN_OR_RETURN(c.hand, ReadSerial(hw["hand"], where, "hardware.hand"));
     }
     for (const auto& cam : hw["cameras"]) {
-      IDI_RETURN_IF_ERROR(OnlyKeys(cam, {"name", "backend", "device"}, where, "hardware.cameras"));
+      IDI_RETURN_IF_ERROR(
+          OnlyKeys(cam, {"name", "backend", "device", "width", "height", "exposure_us"}, where, "hardware.cameras"));
       CameraEndpoint e;
       IDI_RETURN_IF_ERROR(Read(cam, "name", where, "hardware.cameras", &e.name));
       IDI_RETURN_IF_ERROR(Read(cam, "backend", where, "hardware.cameras", &e.backend));
       IDI_RETURN_IF_ERROR(Read(cam, "device", where, "hardware.cameras", &e.device));
+      IDI_RETURN_IF_ERROR(Read(cam, "width", where, "hardware.cameras", &e.width));
+      IDI_RETURN_IF_ERROR(Read(cam, "height", where, "hardware.cameras", &e.height));
+      IDI_RETURN_IF_ERROR(Read(cam, "exposure_us", where, "hardware.cameras", &e.exposure_us));
       if (e.backend != "v4l2" && e.backend != "mrpt") {
         return InvalidArgument(At(where, cam) + ": camera backend '" + e.backend + "' (expected v4l2 or mrpt)");
+      }
+      if (e.width < 16 || e.width > 8192 || e.height < 16 || e.height > 8192) {
+        return InvalidArgument(At(where, cam) + ": 'hardware.cameras' width and height must be in 16..8192, got " +
+                               std::to_string(e.width) + " x " + std::to_string(e.height));
+      }
+      if (!(e.exposure_us >= 0 && e.exposure_us <= 10e6)) {
+        return InvalidArgument(At(where, cam) + ": 'hardware.cameras.exposure_us' must be in [0, 1e7] (0: automatic)");
       }
       c.cameras.push_back(e);
     }

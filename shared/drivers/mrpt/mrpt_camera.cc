@@ -82,6 +82,7 @@ Status MrptCamera::Start(const hal::CameraSettings& settings) {
     reader_.reset();
     impl_ = std::make_shared<Impl>();
   }
+  if (settings.exposure_us > 0) IDI_RETURN_IF_ERROR(SetExposure(settings.exposure_us));  // 0: the camera's own
   settings_ = settings;
   std::ostringstream ini;
   ini << "[CAMERA]\n";
