@@ -448,9 +448,9 @@ Result<Cell> MakeSimCell(const WorkcellConfig& config) {
 // control socket's thread stops and reads health. The drivers are not thread-safe, so one thread talks
 // to the devices at a time (io_), one device operation at a time: a stop during a reset interrupts the
 // operation in progress when it waits for a move to end (a PTU's move home, the hand's initialisation:
-// it returns within about 50 ms, its device halted), else waits for it (a command's reply: at most the
-// reply timeout, 1 s; a camera's check frame: 3 s); then the reset's remaining steps are skipped
-// (Cancelled) and every device is stopped. Health never waits: it is the snapshot taken
+// it returns within about 50 ms, its device halted), else waits for it (a command's reply: the reply
+// timeout, 1 s, each; a reconnection's exchange; a camera's check frame: 3 s); then the reset's
+// remaining steps are skipped (Cancelled) and every device is stopped. Health never waits: it is the snapshot taken
 // after the last operation, marked busy while one runs.
 class HardwareDeviceSet final : public DeviceSet {
  public:
@@ -637,7 +637,11 @@ class HardwareDeviceSet final : public DeviceSet {
         return InvalidArgument(where + ": " + cam.last_error);
       }
     }
-    const Status st = cam.device->Start(hal::CameraSettings{});
+    hal::CameraSettings settings;
+    settings.width = cam.endpoint.width;
+    settings.height = cam.endpoint.height;
+    settings.exposure_us = cam.endpoint.exposure_us;
+    const Status st = cam.device->Start(settings);
     if (!st.ok()) {
       cam.last_error = st.ToString();
       return st.WithContext(where);

@@ -252,7 +252,7 @@ TEST_F(CellTest, UnknownBackendAndUnreachableHardwareAreClearErrors) {
 
 // The service homes the cell on its run thread while the control socket's thread may stop it. A stop
 // during homing waits for the command in progress (never talks to a driver another thread is using),
-// ends the wait for the move that follows (the unit halted), skips the rest of the homing and halts
+// sends no further command of that move (the unit halted), skips the rest of the homing and halts
 // every device; health meanwhile answers at once, marked busy.
 TEST_F(CellTest, AStopDuringHomingEndsItAfterTheOperationInProgress) {
   EmulatedCell e;
@@ -277,17 +277,21 @@ TEST_F(CellTest, AStopDuringHomingEndsItAfterTheOperationInProgress) {
   home.join();
 
   EXPECT_EQ(homed.code(), StatusCode::kCancelled) << homed.ToString();
-  EXPECT_NE(homed.message().find("ptu-left: waiting for 'A': interrupted by a stop"), std::string::npos)
+  EXPECT_NE(homed.message().find("ptu-left: move interrupted by a stop; halt sent"), std::string::npos)
       << homed.message();
-  // The right unit was not moved after the stop; both were halted.
-  const std::vector<std::string> after = e.right->commands();
-  EXPECT_TRUE(std::none_of(after.begin() + static_cast<std::ptrdiff_t>(right_commands),
-                           after.end(),
-                           [](const std::string& cmd) {
-                             // PP<n> / TP<n>: a position command (PP alone is a query)
-                             return (cmd.rfind("PP", 0) == 0 || cmd.rfind("TP", 0) == 0) && cmd.size() > 2;
-                           }))
-      << "the right unit was moved after the stop";
+  // Position commands (PP<n> / TP<n>; PP alone is a query) sent from `from` on.
+  const auto positioned = [](const std::vector<std::string>& commands, std::size_t from) {
+    std::vector<std::string> out;
+    for (std::size_t k = from; k < commands.size(); ++k) {
+      const std::string& cmd = commands[k];
+      if ((cmd.rfind("PP", 0) == 0 || cmd.rfind("TP", 0) == 0) && cmd.size() > 2) out.push_back(cmd);
+    }
+    return out;
+  };
+  // The left unit's tilt was not commanded after the stop (only the pan command in progress went), the
+  // right unit was not moved; both were halted.
+  EXPECT_EQ(positioned(e.left->commands(), left_commands), std::vector<std::string>{"PP0"});
+  EXPECT_TRUE(positioned(e.right->commands(), right_commands).empty()) << "the right unit was moved after the stop";
   EXPECT_GE(e.left->halts(), 1);
   EXPECT_GE(e.right->halts(), 1);
   EXPECT_FALSE(cell->devices->Health().at("busy").get<bool>());

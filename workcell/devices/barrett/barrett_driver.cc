@@ -169,16 +169,23 @@ Status BarrettDriver::Abort(const std::string& text) {
   // this one); Control-C ends it at once: every motor stops, "ERR 16384", then the prompt (BH8-Series
   // User's Manual D3000, termination case 4). The aborted command's output is read up to that prompt so
   // that the next command is in step; without it, the next command resynchronises first.
+  // A Control-C that reaches the hand before it began the command may go unheeded: without a prompt,
+  // a second one.
   std::string outcome = "; Control-C sent";
-  const Status written = port_->Write("\x03", options_.reply_timeout);
-  if (!written.ok()) {
-    needs_resync_ = true;
-    outcome = "; Control-C could not be sent: " + written.message();
-  } else if (!port_->ReadUntil(kBarrettPrompt, options_.reply_timeout).ok()) {
-    needs_resync_ = true;
-    outcome += ", no prompt after it";
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    const Status written = port_->Write("\x03", options_.reply_timeout);
+    if (!written.ok()) {
+      needs_resync_ = true;
+      return Cancelled(options_.name + ": '" + text +
+                       "' interrupted by a stop; Control-C could not be sent: " + written.message());
+    }
+    if (port_->ReadUntil(kBarrettPrompt, options_.reply_timeout).ok()) {
+      return Cancelled(options_.name + ": '" + text + "' interrupted by a stop" + outcome);
+    }
+    outcome = "; Control-C sent twice";
   }
-  return Cancelled(options_.name + ": '" + text + "' interrupted by a stop" + outcome);
+  needs_resync_ = true;
+  return Cancelled(options_.name + ": '" + text + "' interrupted by a stop" + outcome + ", no prompt after it");
 }
 
 Status BarrettDriver::NoteFailure(Status status) {
@@ -193,13 +200,13 @@ Status BarrettDriver::NoteFailure(Status status) {
 }
 
 Status BarrettDriver::Motion(const std::string& text, const std::string& what) {
+  if (interrupt_.requested())
+    return Cancelled(options_.name + ": " + what + " refused: a stop is in force; nothing sent");
   IDI_RETURN_IF_ERROR(EnsureConnected());
   if (!initialized_) {
     return FailedPrecondition(options_.name + ": " + what + " before Initialize (HI): the hand must be initialised "
                               "after power-up");
   }
-  if (interrupt_.requested())
-    return Cancelled(options_.name + ": " + what + " refused: a stop is in force; nothing sent");
   auto reply = Transact(text, options_.motion_timeout, /*interruptible=*/true);
   if (!reply.ok()) {
     const Status failed = NoteFailure(reply.status().WithContext(what));

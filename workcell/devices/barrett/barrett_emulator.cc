@@ -52,6 +52,7 @@ void BarrettEmulator::PowerCycle() {
   std::lock_guard lock(mu_);
   initialized_ = false;
   busy_ = false;
+  initialising_ = false;
   pending_lines_.clear();
   line_.clear();
   for (std::size_t i = 0; i < 4; ++i) target_[i] = std::lround(position_[i]);
@@ -137,6 +138,7 @@ void BarrettEmulator::HandleBytes(const char* data, std::size_t n) {
       if (busy_) {
         for (std::size_t m = 0; m < 4; ++m) target_[m] = std::lround(position_[m] = std::round(position_[m]));
         busy_ = false;
+        if (std::exchange(initialising_, false)) initialized_ = false;  // an aborted HI leaves the hand uninitialised
         ++aborts_;
         Finish("ERR 16384\r\n");
         while (!busy_ && !pending_lines_.empty()) {
@@ -195,6 +197,7 @@ void BarrettEmulator::Execute(const std::string& raw) {
     initialized_ = true;
     for (std::size_t m = 0; m < 4; ++m) position_[m] = static_cast<double>(target_[m] = 0);
     busy_ = true;
+    initialising_ = true;
     busy_until_ = std::chrono::steady_clock::now() + options_.hi_duration;
     return;
   }
@@ -266,6 +269,7 @@ void BarrettEmulator::Step(double dt_s) {
   }
   if (busy_ && !Moving() && std::chrono::steady_clock::now() >= busy_until_) {
     busy_ = false;
+    initialising_ = false;
     Finish("");
     while (!busy_ && !pending_lines_.empty()) {
       const std::string next = pending_lines_.front();

@@ -75,8 +75,9 @@ class BarrettEmulator {
   bool silent_ = false;
   bool seen_input_ = false;
   bool initialized_ = false;
-  bool busy_ = false;
-  int aborts_ = 0;  // a motion command awaits its prompt
+  bool busy_ = false;          // a motion command awaits its prompt
+  bool initialising_ = false;  // that command is HI
+  int aborts_ = 0;
   std::chrono::steady_clock::time_point busy_until_{};
   std::array<double, 4> position_{};
   std::array<long, 4> target_{};

@@ -390,6 +390,8 @@ Status PtuDriver::MoveTo(double pan_rad, double tilt_rad, std::chrono::milliseco
   const auto p = static_cast<int32_t>(pan_pos), t = static_cast<int32_t>(tilt_pos);
   pending_limit_hits_.clear();
   for (const std::string& command : {PtuSetPositionCommand(PtuAxis::kPan, p), PtuSetPositionCommand(PtuAxis::kTilt, t)}) {
+    // A stop during the first axis' command: the second is not sent, the first is halted.
+    if (interrupt_.requested()) return HaltAfter(Cancelled(options_.name + ": move interrupted by a stop"));
     auto ack = Transact(command, Expect::kAck, options_.reply_timeout);
     if (!ack.ok()) return HaltAfter(NoteFailure(ack.status()));
   }
