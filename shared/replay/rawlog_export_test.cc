@@ -1,6 +1,9 @@
 #include "shared/replay/rawlog_export.h"
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -68,6 +71,26 @@ TEST(RawlogExportTest, WritesImagesMrptReadsBack) {
   const auto img = cam.Grab(std::chrono::milliseconds(5000));
   ASSERT_TRUE(img.ok()) << img.status().ToString();
   EXPECT_EQ(cv::norm(img->pixels, frames[1].image, cv::NORM_INF), 0.0);
+  EXPECT_TRUE(cam.Stop().ok());
+  // An open that does not return in time is a Timeout naming the camera, not a hang: a stream (MRPT's
+  // ffmpeg grabber) that is a FIFO without a writer blocks the grabber's open. Then a writer comes and
+  // goes (not blocking: without a reader there, the open fails rather than hangs), the blocked open
+  // returns on its own thread and releases its grabber.
+  const std::string fifo = (dir / "blocked.avi").string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  drivers::MrptCamera impatient({"right", "ffmpeg", {{"ffmpeg_url", fifo}}, std::chrono::milliseconds(300)}, &clock);
+  const Status late = impatient.Start({});
+  EXPECT_EQ(late.code(), StatusCode::kTimeout) << late.ToString();
+  EXPECT_NE(late.message().find("right (MRPT ffmpeg): the grabber did not open within 300 ms"), std::string::npos)
+      << late.message();
+  EXPECT_EQ(impatient.Grab(std::chrono::milliseconds(10)).status().code(), StatusCode::kFailedPrecondition);
+  EXPECT_TRUE(impatient.Stop().ok());  // nothing open
+  const int writer = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
+  ASSERT_GE(writer, 0);
+  ::close(writer);
+  // Started again, the camera is usable after a stop.
+  ASSERT_TRUE(cam.Start({}).ok());
+  EXPECT_TRUE(cam.Grab(std::chrono::milliseconds(5000)).ok());
   EXPECT_TRUE(cam.Stop().ok());
   fs::remove_all(dir);
 }

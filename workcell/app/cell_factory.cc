@@ -449,9 +449,9 @@ Result<Cell> MakeSimCell(const WorkcellConfig& config) {
 // to the devices at a time (io_), one device operation at a time: a stop during a reset interrupts the
 // operation in progress when it waits for a move to end (a PTU's move home, the hand's initialisation:
 // it returns within about 50 ms, its device halted), else waits for it (a command's reply: the reply
-// timeout, 1 s, each; a reconnection's exchange; a camera's check frame: 3 s); then the reset's
-// remaining steps are skipped (Cancelled) and every device is stopped. Health never waits: it is the snapshot taken
-// after the last operation, marked busy while one runs.
+// timeout, 1 s, each; a reconnection's exchange; a camera's check frame, 3 s, or its opening, MRPT's up
+// to 10 s); then the reset's remaining steps are skipped (Cancelled) and every device is stopped.
+// Health never waits: it is the snapshot taken after the last operation, marked busy while one runs.
 class HardwareDeviceSet final : public DeviceSet {
  public:
   explicit HardwareDeviceSet(const WorkcellConfig& c) {

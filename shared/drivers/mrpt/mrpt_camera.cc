@@ -9,6 +9,8 @@
 #include <opencv2/imgproc.hpp>
 #include <optional>
 #include <sstream>
+#include <string>
+#include <utility>
 
 #include "shared/util/timed_call.h"
 
@@ -102,13 +104,27 @@ Status MrptCamera::Start(const hal::CameraSettings& settings) {
     }
     ini << key << " = " << value << "\n";
   }
-  try {
-    mrpt::config::CConfigFileMemory cfg(ini.str());
-    impl_->sensor.loadConfig(cfg, "CAMERA");
-    impl_->sensor.initialize();
-  } catch (const std::exception& e) {
-    return DeviceError(options_.name + " (MRPT " + options_.grabber_type + "): cannot open: " + e.what());
+  const std::string where = options_.name + " (MRPT " + options_.grabber_type + ")";
+  // On its own thread (see open_timeout); the call holds the grabber it opens.
+  TimedCall<Status> open([impl = impl_, config = ini.str(), where]() -> Status {
+    try {
+      mrpt::config::CConfigFileMemory cfg(config);
+      impl->sensor.loadConfig(cfg, "CAMERA");
+      impl->sensor.initialize();
+      return Status::Ok();
+    } catch (const std::exception& e) {
+      return DeviceError(where + ": cannot open: " + e.what());
+    } catch (...) {
+      return DeviceError(where + ": cannot open: unknown exception");
+    }
+  });
+  const std::optional<Status> opened = open.Wait(options_.open_timeout);
+  if (!opened) {
+    impl_ = std::make_shared<Impl>();  // the blocked open keeps its grabber
+    return Timeout(where + ": the grabber did not open within " + std::to_string(options_.open_timeout.count()) +
+                   " ms (the open goes on in the driver; the next start tries another)");
   }
+  IDI_RETURN_IF_ERROR(*opened);
   impl_->open = true;
   reader_ = std::make_unique<Reader>(impl_, options_.name, settings.gray);
   return Status::Ok();
@@ -124,14 +140,24 @@ Status MrptCamera::Stop() {
                        "until that read returns)");
   }
   reader_.reset();
-  try {
-    impl_->sensor.close();
-  } catch (const std::exception& e) {
-    impl_->open = false;
-    return DeviceError(options_.name + ": close failed: " + e.what());
-  }
   impl_->open = false;
-  return Status::Ok();
+  // On its own thread (see close_timeout), holding the grabber; the next Start opens a fresh one.
+  TimedCall<Status> close([impl = std::exchange(impl_, std::make_shared<Impl>()), name = options_.name]() -> Status {
+    try {
+      impl->sensor.close();
+      return Status::Ok();
+    } catch (const std::exception& e) {
+      return DeviceError(name + ": close failed: " + e.what());
+    } catch (...) {
+      return DeviceError(name + ": close failed: unknown exception");
+    }
+  });
+  const std::optional<Status> closed = close.Wait(options_.close_timeout);
+  if (!closed) {
+    return Timeout(options_.name + ": the grabber did not close within " +
+                   std::to_string(options_.close_timeout.count()) + " ms (left to the driver)");
+  }
+  return *closed;
 }
 
 Result<hal::Image> MrptCamera::Grab(std::chrono::milliseconds timeout) {

@@ -3,6 +3,7 @@
 // (`opencv`, `ffmpeg`, `image_dir`, and `rawlog`, which replays a recorded MRPT rawlog).
 #pragma once
 
+#include <chrono>
 #include <map>
 #include <memory>
 #include <string>
@@ -18,6 +19,11 @@ struct MrptCameraOptions {
   // Further CCameraSensor settings, written as `key = value` into its configuration section
   // (e.g. dc1394_camera_guid, dc1394_framerate, rawlog_file, image_dir_url).
   std::map<std::string, std::string> settings;
+  // How long Start waits for the grabber to open and Stop for it to close: the driver's calls take no
+  // timeout of their own and can block (a FireWire bus in trouble), and the caller may hold a lock an
+  // operator's stop needs.
+  std::chrono::milliseconds open_timeout{10'000};
+  std::chrono::milliseconds close_timeout{3'000};
 };
 
 class MrptCamera final : public hal::CameraDevice {
@@ -25,10 +31,13 @@ class MrptCamera final : public hal::CameraDevice {
   MrptCamera(MrptCameraOptions options, hal::Clock* clock);
   ~MrptCamera() override;
   std::string name() const override { return options_.name; }
-  // DeviceError naming the camera and MRPT's reason when the grabber cannot be opened.
+  // DeviceError naming the camera and MRPT's reason when the grabber cannot be opened; Timeout naming it
+  // when the open has not returned within open_timeout (it goes on on its own thread, with its own
+  // grabber, which is released when it returns; the next Start opens another).
   Status Start(const hal::CameraSettings& settings) override;
   // Stop waits up to 2 s for a read in progress; a read still blocked then leaves its grabber open (it
   // cannot be closed under the read): DeviceError naming the camera, and the next Start opens a new one.
+  // The close itself is waited for up to close_timeout (Timeout naming the camera; it goes on).
   Status Stop() override;
   // CCameraSensor's read takes no timeout and can block in the driver for ever (a camera unplugged
   // mid-frame), so it runs on its own thread (shared/util/timed_call.h): Grab returns Timeout naming the
