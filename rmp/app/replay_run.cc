@@ -47,6 +47,11 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   const nlohmann::json& meta = log.recording.header.meta;
   if (log.ticks.empty()) return InvalidArgument(o.dir + ": the drive log has no control ticks");
   if (log.can.empty()) return InvalidArgument(o.dir + ": the drive log's can.log is empty");
+  if (!log.can_torn_last_line.empty()) {
+    spdlog::warn("{}: can.log ends in a line without its newline (the recorder stopped mid-line?); dropped: '{}'",
+                 o.dir,
+                 log.can_torn_last_line);
+  }
   // The pipeline as it was configured when the log was recorded.
   RmpConfig config = DefaultRmpConfig();
   if (!meta.is_null() && !meta.is_object()) return InvalidArgument(o.dir + "/recording.json: meta must be an object");

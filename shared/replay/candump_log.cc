@@ -211,7 +211,10 @@ Result<CandumpRecord> ParseCandumpLine(std::string_view line, std::string_view w
   return record;
 }
 
-Result<std::vector<CandumpRecord>> ParseCandumpText(std::string_view text, std::string_view source_name) {
+Result<std::vector<CandumpRecord>> ParseCandumpText(std::string_view text,
+                                                    std::string_view source_name,
+                                                    std::string* torn_last_line) {
+  if (torn_last_line != nullptr) torn_last_line->clear();
   std::vector<CandumpRecord> records;
   int line_no = 0;
   std::size_t pos = 0;
@@ -224,10 +227,11 @@ Result<std::vector<CandumpRecord>> ParseCandumpText(std::string_view text, std::
     ++line_no;
     const std::string_view trimmed = TrimCandump(line);
     if (trimmed.empty() || trimmed.front() != '(') continue;  // comment, as canplayer skips it
+    if (unterminated) {                                       // torn (see the header)
+      if (torn_last_line != nullptr) *torn_last_line = std::string(trimmed);
+      break;
+    }
     Result<CandumpRecord> r = ParseCandumpLine(trimmed, std::string(source_name) + ":" + std::to_string(line_no));
-    // A last line without its newline that does not parse is one the writer was killed in the middle of
-    // (a power cut on the vehicle): the log up to it is kept.
-    if (!r.ok() && unterminated) break;
     if (!r.ok()) return r.status();
     r->line = line_no;
     records.push_back(std::move(r).value());
@@ -235,9 +239,9 @@ Result<std::vector<CandumpRecord>> ParseCandumpText(std::string_view text, std::
   return records;
 }
 
-Result<std::vector<CandumpRecord>> ReadCandumpFile(const std::string& path) {
+Result<std::vector<CandumpRecord>> ReadCandumpFile(const std::string& path, std::string* torn_last_line) {
   IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(path));
-  return ParseCandumpText(text, path);
+  return ParseCandumpText(text, path, torn_last_line);
 }
 
 Status CandumpWriterOptions::Check() const {

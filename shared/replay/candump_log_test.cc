@@ -161,9 +161,21 @@ TEST(CandumpParse, TextSkipsCommentsAndNamesTheBadLine) {
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.status().message().find("a.log:5"), std::string::npos) << bad.status().message();
   // The same bad line as the file's last, without its newline: a writer killed mid-line; the rest is kept.
-  Result<std::vector<CandumpRecord>> torn = ParseCandumpText(text + "(0000000000.020000) can0 402#00112", "a.log");
+  std::string dropped;
+  Result<std::vector<CandumpRecord>> torn =
+      ParseCandumpText(text + "(0000000000.020000) can0 402#00112", "a.log", &dropped);
   ASSERT_TRUE(torn.ok()) << torn.status().ToString();
   EXPECT_EQ(torn->size(), 2u);
+  EXPECT_EQ(dropped, "(0000000000.020000) can0 402#00112");
+  // Cut after an even number of data digits it would parse, as a shorter frame: dropped all the same.
+  Result<std::vector<CandumpRecord>> cut =
+      ParseCandumpText(text + "(0000000000.020000) can0 402#0011", "a.log", &dropped);
+  ASSERT_TRUE(cut.ok()) << cut.status().ToString();
+  EXPECT_EQ(cut->size(), 2u);
+  EXPECT_EQ(dropped, "(0000000000.020000) can0 402#0011");
+  // A log whose every line ends: nothing dropped.
+  ASSERT_TRUE(ParseCandumpText(text, "a.log", &dropped).ok());
+  EXPECT_TRUE(dropped.empty());
 }
 
 TEST(CandumpFile, MissingFileIsNotFound) {

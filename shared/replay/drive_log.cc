@@ -106,7 +106,7 @@ Result<DriveLog> ReadDriveLog(const std::string& dir) {
   }
   const std::string can_path = (fs::path(dir) / kDriveLogCanFile).string();
   if (!fs::exists(can_path)) return NotFound(can_path + ": the drive log has no CAN log");
-  IDI_ASSIGN_OR_RETURN(log.can, ReadCandumpFile(can_path));
+  IDI_ASSIGN_OR_RETURN(log.can, ReadCandumpFile(can_path, &log.can_torn_last_line));
   return log;
 }
 

@@ -74,6 +74,7 @@ struct DriveLog {
   std::vector<DriveFrameRecord> frames;  // in the order their image events were written
   std::vector<DriveTickRecord> ticks;
   std::vector<CandumpRecord> can;
+  std::string can_torn_last_line;  // can.log's last line, dropped: it has no newline (see ParseCandumpText)
 };
 
 // Reads a drive log. ParseError naming the file (and line) for malformed content or a recording of
