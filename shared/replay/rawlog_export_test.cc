@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -73,9 +74,9 @@ TEST(RawlogExportTest, WritesImagesMrptReadsBack) {
   EXPECT_EQ(cv::norm(img->pixels, frames[1].image, cv::NORM_INF), 0.0);
   EXPECT_TRUE(cam.Stop().ok());
   // An open that does not return in time is a Timeout naming the camera, not a hang: a stream (MRPT's
-  // ffmpeg grabber) that is a FIFO without a writer blocks the grabber's open. Then a writer comes and
-  // goes (not blocking: without a reader there, the open fails rather than hangs), the blocked open
-  // returns on its own thread and releases its grabber.
+  // ffmpeg grabber) that is a FIFO without a writer blocks the grabber's open. While it is blocked, a
+  // second start opens no other grabber. Then a writer comes and goes (O_RDWR: it never waits for a
+  // reader), which lets the blocked open return on its own thread.
   const std::string fifo = (dir / "blocked.avi").string();
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   drivers::MrptCamera impatient({"right", "ffmpeg", {{"ffmpeg_url", fifo}}, std::chrono::milliseconds(300)}, &clock);
@@ -85,10 +86,14 @@ TEST(RawlogExportTest, WritesImagesMrptReadsBack) {
       << late.message();
   EXPECT_EQ(impatient.Grab(std::chrono::milliseconds(10)).status().code(), StatusCode::kFailedPrecondition);
   EXPECT_TRUE(impatient.Stop().ok());  // nothing open
-  const int writer = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
+  const Status again = impatient.Start({});
+  EXPECT_EQ(again.code(), StatusCode::kTimeout) << again.ToString();
+  EXPECT_NE(again.message().find("an earlier open or close of the grabber is still blocked"), std::string::npos)
+      << again.message();
+  const int writer = ::open(fifo.c_str(), O_RDWR);
   ASSERT_GE(writer, 0);
   ::close(writer);
-  // Started again, the camera is usable after a stop.
+  // The first camera, started again, is usable after its stop.
   ASSERT_TRUE(cam.Start({}).ok());
   EXPECT_TRUE(cam.Grab(std::chrono::milliseconds(5000)).ok());
   EXPECT_TRUE(cam.Stop().ok());
@@ -101,6 +106,16 @@ TEST(RawlogExportTest, BadInput) {
   EXPECT_EQ(ReadRawlogImages("/no/such.rawlog").status().code(), StatusCode::kNotFound);
   hal::SimClock clock;
   drivers::MrptCamera cam({"a602fc", "dc1394", {}}, &clock);
+  // The shutter's range (20 us steps, 12 bits); 0 leaves the camera's own; not a number is refused.
+  EXPECT_EQ(cam.SetExposure(10).code(), StatusCode::kOutOfRange);
+  EXPECT_EQ(cam.SetExposure(100'000).code(), StatusCode::kOutOfRange);
+  EXPECT_EQ(cam.SetExposure(-1).code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(cam.SetExposure(std::nan("")).code(), StatusCode::kInvalidArgument);
+  EXPECT_TRUE(cam.SetExposure(8000).ok());
+  EXPECT_TRUE(cam.SetExposure(0).ok());
+  hal::CameraSettings nan_exposure;
+  nan_exposure.exposure_us = std::nan("");
+  EXPECT_EQ(cam.Start(nan_exposure).code(), StatusCode::kInvalidArgument);
   // No FireWire bus here: opening fails with the camera named (never a crash).
   const Status st = cam.Start({});
   if (!st.ok()) {

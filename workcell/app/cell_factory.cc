@@ -449,8 +449,8 @@ Result<Cell> MakeSimCell(const WorkcellConfig& config) {
 // to the devices at a time (io_), one device operation at a time: a stop during a reset interrupts the
 // operation in progress when it waits for a move to end (a PTU's move home, the hand's initialisation:
 // it returns within about 50 ms, its device halted), else waits for it (a command's reply: the reply
-// timeout, 1 s, each; a reconnection's exchange; a camera's check frame, 3 s, or its opening, MRPT's up
-// to 10 s); then the reset's remaining steps are skipped (Cancelled) and every device is stopped.
+// timeout, 1 s, each; a reconnection's exchange; a camera's check frame, 3 s, or its restart, MRPT's
+// up to about 15 s); then the reset's remaining steps are skipped (Cancelled) and every device is stopped.
 // Health never waits: it is the snapshot taken after the last operation, marked busy while one runs.
 class HardwareDeviceSet final : public DeviceSet {
  public:
@@ -586,8 +586,8 @@ class HardwareDeviceSet final : public DeviceSet {
     health_ = std::move(h);
   }
 
-  // A configured camera: opened at Connect (gray, 640 x 480, the A602fc's format), checked with one frame
-  // at Home. The jobs that use images do not run on the real cell yet (MakeHardwareCell), so nothing
+  // A configured camera: opened at Connect (gray, at its configured size and exposure), checked with one
+  // frame at Home. The jobs that use images do not run on the real cell yet (MakeHardwareCell), so nothing
   // else grabs.
   struct Camera {
     CameraEndpoint endpoint;

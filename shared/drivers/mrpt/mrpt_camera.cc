@@ -78,13 +78,23 @@ MrptCamera::~MrptCamera() { (void)Stop(); }
 
 Status MrptCamera::Start(const hal::CameraSettings& settings) {
   if (impl_->open) return Status::Ok();
+  const std::string where = options_.name + " (MRPT " + options_.grabber_type + ")";
+  IDI_RETURN_IF_ERROR(hal::CheckCameraSettings(settings, where));
+  if (pending_) {
+    if (!pending_->Settle(std::chrono::milliseconds(0))) {
+      return Timeout(where +
+                     ": an earlier open or close of the grabber is still blocked in the driver; not "
+                     "opening another");
+    }
+    pending_.reset();  // it returned: its grabber is released
+  }
   // A grabber left open under a blocked read (Stop) stays with that read; this Start opens a new one
   // (which the driver may refuse while the old one still holds the camera).
   if (reader_) {
     reader_.reset();
     impl_ = std::make_shared<Impl>();
   }
-  if (settings.exposure_us > 0) IDI_RETURN_IF_ERROR(SetExposure(settings.exposure_us));  // 0: the camera's own
+  if (settings.exposure_us > 0) IDI_RETURN_IF_ERROR(SetExposure(settings.exposure_us));
   settings_ = settings;
   std::ostringstream ini;
   ini << "[CAMERA]\n";
@@ -94,6 +104,11 @@ Status MrptCamera::Start(const hal::CameraSettings& settings) {
   if (options_.grabber_type == "dc1394") {
     ini << "dc1394_frame_width = " << settings.width << "\n";
     ini << "dc1394_frame_height = " << settings.height << "\n";
+    if (exposure_us_ > 0) {
+      // IIDC shutter units are camera specific; the A602fc counts 20 us steps. Mode 0: manual.
+      ini << "dc1394_shutter = " << std::lround(exposure_us_ / 20.0) << "\n";
+      ini << "dc1394_shutter_mode = 0\n";
+    }
   } else if (options_.grabber_type == "opencv") {
     ini << "cv_frame_width = " << settings.width << "\n";
     ini << "cv_frame_height = " << settings.height << "\n";
@@ -104,27 +119,35 @@ Status MrptCamera::Start(const hal::CameraSettings& settings) {
     }
     ini << key << " = " << value << "\n";
   }
-  const std::string where = options_.name + " (MRPT " + options_.grabber_type + ")";
-  // On its own thread (see open_timeout); the call holds the grabber it opens.
-  TimedCall<Status> open([impl = impl_, config = ini.str(), where]() -> Status {
-    try {
-      mrpt::config::CConfigFileMemory cfg(config);
-      impl->sensor.loadConfig(cfg, "CAMERA");
-      impl->sensor.initialize();
-      return Status::Ok();
-    } catch (const std::exception& e) {
-      return DeviceError(where + ": cannot open: " + e.what());
-    } catch (...) {
-      return DeviceError(where + ": cannot open: unknown exception");
+  try {
+    // On its own thread (see open_timeout); the call holds the grabber it opens.
+    auto open = std::make_unique<TimedCall<Status>>([impl = impl_, config = ini.str(), where]() -> Status {
+      try {
+        mrpt::config::CConfigFileMemory cfg(config);
+        impl->sensor.loadConfig(cfg, "CAMERA");
+        impl->sensor.initialize();
+        return Status::Ok();
+      } catch (const std::exception& e) {
+        return DeviceError(where + ": cannot open: " + e.what());
+      } catch (...) {
+        return DeviceError(where + ": cannot open: unknown exception");
+      }
+    });
+    const std::optional<Status> opened = open->Wait(options_.open_timeout);
+    if (!opened) {
+      pending_ = std::move(open);
+      impl_ = std::make_shared<Impl>();  // the blocked open keeps its grabber
+      return Timeout(where + ": the grabber did not open within " + std::to_string(options_.open_timeout.count()) +
+                     " ms (the open goes on in the driver)");
     }
-  });
-  const std::optional<Status> opened = open.Wait(options_.open_timeout);
-  if (!opened) {
-    impl_ = std::make_shared<Impl>();  // the blocked open keeps its grabber
-    return Timeout(where + ": the grabber did not open within " + std::to_string(options_.open_timeout.count()) +
-                   " ms (the open goes on in the driver; the next start tries another)");
+    if (!opened->ok()) {
+      impl_ = std::make_shared<Impl>();  // the next start begins with a fresh grabber
+      return *opened;
+    }
+  } catch (const std::exception& e) {  // no thread for the open
+    impl_ = std::make_shared<Impl>();
+    return DeviceError(where + ": cannot open: " + e.what());
   }
-  IDI_RETURN_IF_ERROR(*opened);
   impl_->open = true;
   reader_ = std::make_unique<Reader>(impl_, options_.name, settings.gray);
   return Status::Ok();
@@ -142,22 +165,29 @@ Status MrptCamera::Stop() {
   reader_.reset();
   impl_->open = false;
   // On its own thread (see close_timeout), holding the grabber; the next Start opens a fresh one.
-  TimedCall<Status> close([impl = std::exchange(impl_, std::make_shared<Impl>()), name = options_.name]() -> Status {
-    try {
-      impl->sensor.close();
-      return Status::Ok();
-    } catch (const std::exception& e) {
-      return DeviceError(name + ": close failed: " + e.what());
-    } catch (...) {
-      return DeviceError(name + ": close failed: unknown exception");
+  std::shared_ptr<Impl> impl = std::exchange(impl_, std::make_shared<Impl>());
+  try {
+    auto close = std::make_unique<TimedCall<Status>>([impl, name = options_.name]() -> Status {
+      try {
+        impl->sensor.close();
+        return Status::Ok();
+      } catch (const std::exception& e) {
+        return DeviceError(name + ": close failed: " + e.what());
+      } catch (...) {
+        return DeviceError(name + ": close failed: unknown exception");
+      }
+    });
+    impl.reset();  // the call holds it
+    const std::optional<Status> closed = close->Wait(options_.close_timeout);
+    if (!closed) {
+      pending_ = std::move(close);
+      return Timeout(options_.name + ": the grabber did not close within " +
+                     std::to_string(options_.close_timeout.count()) + " ms (left to the driver)");
     }
-  });
-  const std::optional<Status> closed = close.Wait(options_.close_timeout);
-  if (!closed) {
-    return Timeout(options_.name + ": the grabber did not close within " +
-                   std::to_string(options_.close_timeout.count()) + " ms (left to the driver)");
+    return *closed;
+  } catch (const std::exception& e) {  // no thread for the close: the grabber goes with `impl`
+    return DeviceError(options_.name + ": close failed: " + e.what());
   }
-  return *closed;
 }
 
 Result<hal::Image> MrptCamera::Grab(std::chrono::milliseconds timeout) {
@@ -181,14 +211,19 @@ Result<hal::Image> MrptCamera::Grab(std::chrono::milliseconds timeout) {
 }
 
 Status MrptCamera::SetExposure(double exposure_us) {
-  if (options_.grabber_type != "dc1394") {
+  if (impl_->open) return FailedPrecondition(options_.name + ": set the exposure before Start");
+  if (!std::isfinite(exposure_us) || exposure_us < 0) {
+    return InvalidArgument(options_.name + ": exposure " + std::to_string(exposure_us) + " us is invalid");
+  }
+  if (exposure_us > 0 && options_.grabber_type != "dc1394") {
     return FailedPrecondition(options_.name + ": exposure control needs the dc1394 grabber");
   }
-  if (impl_->open) return FailedPrecondition(options_.name + ": set the exposure before Start");
-  if (!(exposure_us > 0) || !std::isfinite(exposure_us)) return InvalidArgument(options_.name + ": bad exposure");
-  // IIDC shutter units are camera specific; the A602fc counts 20 us steps.
-  options_.settings["dc1394_shutter"] = std::to_string(static_cast<long>(std::lround(exposure_us / 20.0)));
-  options_.settings["dc1394_shutter_mode"] = "0";
+  // The shutter's 12 bits of 20 us steps.
+  if (exposure_us > 0 && (exposure_us < 20.0 || exposure_us > 4095 * 20.0)) {
+    return OutOfRange(options_.name + ": exposure " + std::to_string(exposure_us) +
+                      " us is outside the shutter's 20 .. 81900 us");
+  }
+  exposure_us_ = exposure_us;
   return Status::Ok();
 }
 

@@ -10,6 +10,7 @@
 
 #include "shared/hal/camera.h"
 #include "shared/hal/clock.h"
+#include "shared/util/timed_call.h"
 
 namespace idi::drivers {
 
@@ -33,7 +34,9 @@ class MrptCamera final : public hal::CameraDevice {
   std::string name() const override { return options_.name; }
   // DeviceError naming the camera and MRPT's reason when the grabber cannot be opened; Timeout naming it
   // when the open has not returned within open_timeout (it goes on on its own thread, with its own
-  // grabber, which is released when it returns; the next Start opens another).
+  // grabber, which is released when it returns). While an open or close that timed out is still
+  // blocked in the driver, Start opens no other grabber: Timeout saying so. InvalidArgument for
+  // settings hal::CheckCameraSettings refuses. settings.exposure_us > 0 sets the shutter (SetExposure).
   Status Start(const hal::CameraSettings& settings) override;
   // Stop waits up to 2 s for a read in progress; a read still blocked then leaves its grabber open (it
   // cannot be closed under the read): DeviceError naming the camera, and the next Start opens a new one.
@@ -45,7 +48,9 @@ class MrptCamera final : public hal::CameraDevice {
   // the next Grab is old by then and is dropped, so Grab gives the next frame. Frames are timestamped
   // on `clock` at their arrival.
   Result<hal::Image> Grab(std::chrono::milliseconds timeout) override;
-  // dc1394 only, and only before Start (sets dc1394_shutter in the grabber's configuration).
+  // Only before Start. dc1394 only: the shutter in 20 us steps (the A602fc's), 20 us .. 81.9 ms
+  // (OutOfRange outside). 0 (any grabber) leaves the shutter as the camera has it: MRPT does not touch
+  // it, and an IIDC camera keeps a manual shutter until it is powered off.
   Status SetExposure(double exposure_us) override;
 
  private:
@@ -56,6 +61,9 @@ class MrptCamera final : public hal::CameraDevice {
   hal::CameraSettings settings_;
   std::shared_ptr<Impl> impl_;  // shared with a read in progress
   std::unique_ptr<Reader> reader_;
+  double exposure_us_ = 0;  // 0: the camera's own shutter
+  // An open or close that outlasted its wait, still blocked in the driver (Start waits for it to end).
+  std::unique_ptr<TimedCall<Status>> pending_;
   uint64_t sequence_ = 0;
 };
 
