@@ -1,16 +1,17 @@
 #include "rmp/app/sim_run.h"
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <opencv2/imgcodecs.hpp>
 #include <thread>
 
 #include "shared/plot/plot.h"
+#include "shared/plot/png_file.h"
 #include "shared/util/atomic_file.h"
 
 namespace idi::rmp {
@@ -290,9 +291,7 @@ Status WriteRunPng(const std::string& path, const TrackSpec& track, const SimTru
   if (ia.empty() || ib.empty() || ia.cols != ib.cols) return Internal("plot: cannot compose the run figure");
   cv::Mat both;
   cv::vconcat(ia, ib, both);
-  std::vector<uint8_t> png;
-  if (!cv::imencode(".png", both, png)) return Internal("plot: cannot encode the run figure");
-  return WriteFileAtomically(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+  return plot::WritePngFile(path, both);
 }
 
 }  // namespace idi::rmp

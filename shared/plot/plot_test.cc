@@ -4,9 +4,12 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+
+#include "shared/plot/png_file.h"
 
 namespace idi::plot {
 namespace {
@@ -118,6 +121,27 @@ TEST(PlotTest, SavesAtomically) {
   ASSERT_TRUE(f.SavePng(path).ok());
   EXPECT_FALSE(cv::imread(path).empty());
   EXPECT_FALSE(f.SavePng("/nonexistent-dir/x.png").ok());
+}
+
+// An image as a PNG file: read back pixel for pixel; an empty image or a folder that is not there is an
+// error naming the file, and nothing is written.
+TEST(PngFileTest, WritesAnImageThatReadsBackAndNamesTheFileOnError) {
+  cv::Mat img(7, 5, CV_8UC1);
+  for (int r = 0; r < img.rows; ++r) {
+    for (int c = 0; c < img.cols; ++c) img.at<uchar>(r, c) = static_cast<uchar>(r * 30 + c);
+  }
+  const std::string path = ::testing::TempDir() + "/png_file_test_" + std::to_string(::getpid()) + ".png";
+  ASSERT_TRUE(WritePngFile(path, img).ok());
+  const cv::Mat back = cv::imread(path, cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(back.type(), CV_8UC1);
+  EXPECT_EQ(cv::norm(back, img, cv::NORM_INF), 0.0);
+  const Status empty = WritePngFile(path + ".empty.png", cv::Mat());
+  EXPECT_EQ(empty.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(empty.message().find(path + ".empty.png"), std::string::npos) << empty.message();
+  const Status nowhere = WritePngFile("/nonexistent-dir/y.png", img);
+  EXPECT_FALSE(nowhere.ok());
+  EXPECT_NE(nowhere.message().find("/nonexistent-dir/y.png"), std::string::npos) << nowhere.message();
+  std::remove(path.c_str());
 }
 
 }  // namespace

@@ -16,6 +16,7 @@
 #include "shared/features/features.h"
 #include "shared/features/laser_spot.h"
 #include "shared/features/pixel_geometry.h"
+#include "shared/plot/png_file.h"
 #include "shared/runtime/param_file.h"
 #include "shared/util/atomic_file.h"
 
@@ -228,12 +229,8 @@ Status WriteOverlay(const std::string& dir,
     const cv::Point2f c = ToCv(geometry, p.xy);
     cv::circle(canvas, cv::Point(cvRound(c.x * 16), cvRound(c.y * 16)), 3 * 16, cv::Scalar(0, 0, 255), 1, cv::LINE_AA, 4);
   }
-  std::vector<unsigned char> png;
-  if (!cv::imencode(".png", canvas, png)) {
-    return IoError("could not encode the overlay of " + image_path + " as PNG");
-  }
   const std::string out = (std::filesystem::path(dir) / out_name).string();
-  IDI_RETURN_IF_ERROR(WriteFileAtomically(out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size())));
+  IDI_RETURN_IF_ERROR(plot::WritePngFile(out, canvas).WithContext("the overlay of " + image_path));
   spdlog::info("wrote overlay {}", out);
   return Status::Ok();
 }

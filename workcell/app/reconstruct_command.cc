@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "shared/plot/png_file.h"
 #include "shared/runtime/yaml_error.h"
 #include "shared/util/atomic_file.h"
 #include "workcell/procedures/structure.h"
@@ -115,12 +116,7 @@ Status RunReconstruct(const ReconstructOptions& o) {
       const std::string stem = fs::path(views[v].name).stem().string();
       const int n = ++names[stem];
       const fs::path file = fs::path(o.overlay_dir) / ((n == 1 ? stem : fmt::format("{}_{}", stem, n)) + "_model.png");
-      std::vector<unsigned char> png;
-      if (!cv::imencode(".png", DrawModelOverlay(views[v], r.model, &r.features[v]), png)) {
-        return IoError(file.string() + ": cannot encode the overlay as PNG");
-      }
-      IDI_RETURN_IF_ERROR(
-          WriteFileAtomically(file.string(), std::string_view(reinterpret_cast<const char*>(png.data()), png.size())));
+      IDI_RETURN_IF_ERROR(plot::WritePngFile(file.string(), DrawModelOverlay(views[v], r.model, &r.features[v])));
     }
   }
   if (o.json) {

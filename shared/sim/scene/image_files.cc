@@ -1,10 +1,9 @@
 #include "shared/sim/scene/image_files.h"
 
-#include <opencv2/imgcodecs.hpp>
-
 #include <filesystem>
 #include <vector>
 
+#include "shared/plot/png_file.h"
 #include "shared/util/atomic_file.h"
 
 namespace idi::sim {
@@ -28,14 +27,7 @@ Result<WrittenImage> WriteImageWithTruth(const cv::Mat& image, const GroundTruth
   WrittenImage w;
   w.png_path = (std::filesystem::path(dir) / (stem + ".png")).string();
   w.json_path = (std::filesystem::path(dir) / (stem + ".json")).string();
-  std::vector<uchar> png;
-  try {
-    if (!cv::imencode(".png", image, png)) return IoError(w.png_path + ": PNG encoding failed");
-  } catch (const cv::Exception& e) {
-    return IoError(w.png_path + ": PNG encoding failed: " + e.what());
-  }
-  IDI_RETURN_IF_ERROR(
-      WriteFileAtomically(w.png_path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size())));
+  IDI_RETURN_IF_ERROR(plot::WritePngFile(w.png_path, image));
   IDI_RETURN_IF_ERROR(WriteFileAtomically(w.json_path, GroundTruthToJson(truth) + "\n"));
   w.width = image.cols;
   w.height = image.rows;
