@@ -139,7 +139,8 @@ Result<WorkcellConfig> ParseWorkcellConfig(const std::string& text, const std::s
                                std::to_string(e.width) + " x " + std::to_string(e.height));
       }
       if (!(e.exposure_us >= 0 && e.exposure_us <= 10e6)) {
-        return InvalidArgument(At(where, cam) + ": 'hardware.cameras.exposure_us' must be in [0, 1e7] (0: automatic)");
+        return InvalidArgument(At(where, cam) +
+                               ": 'hardware.cameras.exposure_us' must be in [0, 1e7] (0: the camera's own)");
       }
       c.cameras.push_back(e);
     }

@@ -38,7 +38,7 @@ struct CameraEndpoint {
   std::string backend = "v4l2";  // v4l2 | mrpt
   std::string device;
   int width = 640, height = 480;  // the frame size asked of the camera (the A602fc's 640 x 480 by default)
-  double exposure_us = 0;         // 0: the camera's automatic exposure
+  double exposure_us = 0;         // 0: the camera keeps its own exposure setting
 };
 
 struct WorkcellConfig {
