@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -18,6 +19,68 @@
 
 namespace idi::workcell {
 namespace {
+
+// Where the readings of an acquisition that ended early go: FILE.partial.csv beside the observations
+// file (or, without one, beside the result file).
+std::string PartialPath(const std::string& observations, const std::string& out) {
+  const std::filesystem::path p(observations.empty() ? out : observations);
+  return (p.parent_path() / (p.stem().string() + ".partial.csv")).string();
+}
+
+// An acquisition's failure, after `write` saved the readings it had measured (if any) in `path`; the
+// status says where they are (or why they could not be saved).
+Status KeepPartial(const Status& failure,
+                   std::size_t readings,
+                   const std::string& path,
+                   const std::function<Status(const std::string&)>& write) {
+  if (readings == 0) return failure;
+  const Status saved = write(path);
+  if (!saved.ok()) {
+    return Status(
+        failure.code(),
+        fmt::format(
+            "{}; the {} readings measured could not be saved: {}", failure.message(), readings, saved.message()));
+  }
+  spdlog::warn("the {} readings measured before the acquisition ended are saved in {}", readings, path);
+  return Status(failure.code(),
+                fmt::format("{}; the {} readings measured are saved in {}", failure.message(), readings, path));
+}
+
+// AcquireRobotData, saving what it measured in PartialPath(observations, out) when it ends early.
+Result<RobotAcquisition> AcquireRobotKeepingPartial(ArmDevices& dev,
+                                                    int arm,
+                                                    const CellSetup& setup,
+                                                    RobotAcquisitionOptions ao,
+                                                    const std::string& observations,
+                                                    const std::string& out) {
+  RobotAcquisition partial;
+  ao.partial = &partial;
+  auto acq = AcquireRobotData(dev, arm, setup, calib::ArmModel{}, ao);
+  if (acq.ok()) return acq;
+  return KeepPartial(
+      acq.status(), partial.data.readings.size(), PartialPath(observations, out), [&](const std::string& path) {
+        return WriteRobotObservations(path, partial.data.readings);
+      });
+}
+
+// AcquireRailData, likewise.
+Result<RailAcquisition> AcquireRailKeepingPartial(ArmDevices& d1,
+                                                  ArmDevices& d2,
+                                                  const CellSetup& setup,
+                                                  const calib::ArmModel& arm1,
+                                                  const calib::ArmModel& arm2,
+                                                  RailAcquisitionOptions ao,
+                                                  const std::string& observations,
+                                                  const std::string& out) {
+  RailAcquisition partial;
+  ao.partial = &partial;
+  auto acq = AcquireRailData(d1, d2, setup, arm1, arm2, ao);
+  if (acq.ok()) return acq;
+  return KeepPartial(
+      acq.status(), partial.readings.size(), PartialPath(observations, out), [&](const std::string& path) {
+        return WriteRailObservations(path, partial.readings);
+      });
+}
 
 nlohmann::json SpreadJson(const calib::SpreadStats& s) {
   return {{"max_mm", s.max_mm}, {"mean_mm", s.mean_mm}, {"std_mm", s.std_mm}, {"lines", s.projected.size()}};
@@ -231,7 +294,8 @@ Status RunCalibrateRobot(const RobotCommandOptions& o) {
     ao.cancelled = o.cancelled;
     spdlog::info("digital twin (seed {}): calibrating robot {} by the {} method, {} readings", o.seed, o.arm, o.method,
                  2 * ao.per_set);
-    IDI_ASSIGN_OR_RETURN(const RobotAcquisition acq, AcquireRobotData(dev, arm, SetupFromTwin(*twin), calib::ArmModel{}, ao));
+    IDI_ASSIGN_OR_RETURN(const RobotAcquisition acq,
+                         AcquireRobotKeepingPartial(dev, arm, SetupFromTwin(*twin), ao, o.observations, o.out));
     data = acq.data;
     held_out.push_back(acq.held_out);
     co.noise.plane_normal = acq.plane_normal_in_base;
@@ -377,7 +441,10 @@ Result<calib::ArmModel> ArmForRtu(const std::string& file, bool sim, sim::Workce
   ao.held_out = 0;
   ao.cancelled = cancelled;
   spdlog::info("digital twin: calibrating robot {} first (chapter 4)", k + 1);
-  IDI_ASSIGN_OR_RETURN(const RobotAcquisition acq, AcquireRobotData(dev, k, SetupFromTwin(*twin), calib::ArmModel{}, ao));
+  IDI_ASSIGN_OR_RETURN(
+      const RobotAcquisition acq,
+      AcquireRobotKeepingPartial(
+          dev, k, SetupFromTwin(*twin), ao, "", file.empty() ? fmt::format("robot{}.yaml", k + 1) : file));
   calib::RobotCalibrationOptions co;
   co.noise.spot_sigma_mm = spot_sigma_mm;
   co.noise.plane_normal = acq.plane_normal_in_base;
@@ -412,8 +479,11 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
     ao.readings = o.readings;
     ao.seed = o.seed;
     ao.cancelled = o.cancelled;
-    IDI_ASSIGN_OR_RETURN(const RailAcquisition acq, AcquireRailData(d1, d2, setup, arm1, arm2, ao));
+    IDI_ASSIGN_OR_RETURN(const RailAcquisition acq,
+                         AcquireRailKeepingPartial(d1, d2, setup, arm1, arm2, ao, o.observations, o.out));
     readings = acq.readings;
+    // Saved before the held-out acquisition, which may end early too.
+    if (!o.observations.empty()) IDI_RETURN_IF_ERROR(WriteRailObservations(o.observations, readings));
     acquisition = {{"points", acq.points_world.size()},
                    {"point_walls", acq.point_walls},
                    {"condition_number", acq.condition_number},
@@ -425,10 +495,16 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
     ho.walls = {0};
     ho.seed = o.seed + 17u;
     ho.cancelled = o.cancelled;
-    IDI_ASSIGN_OR_RETURN(const RailAcquisition held, AcquireRailData(d1, d2, setup, arm1, arm2, ho));
+    const auto held = AcquireRailData(d1, d2, setup, arm1, arm2, ho);
+    if (!held.ok()) {
+      // The readings above are kept (again in the observations file, if there is one).
+      return KeepPartial(held.status(),
+                         readings.size(),
+                         o.observations.empty() ? PartialPath("", o.out) : o.observations,
+                         [&](const std::string& path) { return WriteRailObservations(path, readings); });
+    }
     // One held-out point: the readings of the first chosen point.
-    for (std::size_t i = 0; i < held.readings.size(); i += 2) held_out.push_back(held.readings[i]);
-    if (!o.observations.empty()) IDI_RETURN_IF_ERROR(WriteRailObservations(o.observations, readings));
+    for (std::size_t i = 0; i < held->readings.size(); i += 2) held_out.push_back(held->readings[i]);
   } else {
     if (o.observations.empty()) return InvalidArgument("calibrate rtu: --observations FILE.csv is required (or --sim)");
     IDI_ASSIGN_OR_RETURN(readings, ReadRailObservations(o.observations));

@@ -113,8 +113,15 @@ Rigid3d NominalWorldFromBase(int arm_index, const calib::ArmModel& model, const 
   return arm_index == 0 ? rail_from_base : Rail1FromRail2(setup.psi.data()) * rail_from_base;
 }
 
-Result<RobotAcquisition> AcquireRobotData(ArmDevices& dev, int arm_index, const CellSetup& setup,
-                                          const calib::ArmModel& model, const RobotAcquisitionOptions& o) {
+namespace {
+
+// AcquireRobotData into `out`, which keeps what was measured when this ends with an error.
+Status AcquireRobotDataInto(ArmDevices& dev,
+                            int arm_index,
+                            const CellSetup& setup,
+                            const calib::ArmModel& model,
+                            const RobotAcquisitionOptions& o,
+                            RobotAcquisition& out) {
   IDI_RETURN_IF_ERROR(o.Check());
   IDI_RETURN_IF_ERROR(CheckDevices(dev, "robot acquisition"));
   if (o.wall >= static_cast<int>(setup.world_from_wall.size())) {
@@ -122,7 +129,6 @@ Result<RobotAcquisition> AcquireRobotData(ArmDevices& dev, int arm_index, const 
   }
   const bool translate = o.method == calib::TranslationMethod::kTranslate;
   const std::array<double, 2> rail_mm = {o.rail_start_mm, o.rail_start_mm + (translate ? o.distance_mm : 0.0)};
-  RobotAcquisition out;
   out.wall = o.wall;
   if (out.wall < 0) {
     const Vec3d base = NominalWorldFromBase(arm_index, model, setup, rail_mm[0]).translation;
@@ -256,12 +262,17 @@ Result<RobotAcquisition> AcquireRobotData(ArmDevices& dev, int arm_index, const 
     return NotConverged(fmt::format("robot {}: {} of {} configurations could not be aimed at the point", arm_index + 1,
                                     out.loop_failures, total));
   }
-  return out;
+  return Status::Ok();
 }
 
-Result<RailAcquisition> AcquireRailData(ArmDevices& d1, ArmDevices& d2, const CellSetup& setup,
-                                        const calib::ArmModel& m1, const calib::ArmModel& m2,
-                                        const RailAcquisitionOptions& o) {
+// AcquireRailData into `out`, which keeps the readings taken when this ends with an error.
+Status AcquireRailDataInto(ArmDevices& d1,
+                           ArmDevices& d2,
+                           const CellSetup& setup,
+                           const calib::ArmModel& m1,
+                           const calib::ArmModel& m2,
+                           const RailAcquisitionOptions& o,
+                           RailAcquisition& out) {
   IDI_RETURN_IF_ERROR(o.Check());
   IDI_RETURN_IF_ERROR(CheckDevices(d1, "rail acquisition, robot 1"));
   IDI_RETURN_IF_ERROR(CheckDevices(d2, "rail acquisition, robot 2"));
@@ -335,7 +346,6 @@ Result<RailAcquisition> AcquireRailData(ArmDevices& d1, ArmDevices& d2, const Ce
   for (const Candidate& c : cands) total += c.info;
   const Eigen::Vector4d scale = total.diagonal().cwiseSqrt().cwiseInverse();
   Eigen::Matrix4d chosen_info = 1e-9 * Eigen::Matrix4d::Identity();
-  RailAcquisition out;
   std::vector<bool> used(cands.size(), false);
   std::vector<int> chosen;
   for (int k = 0; k < std::min<int>(o.points, static_cast<int>(cands.size())); ++k) {
@@ -417,7 +427,34 @@ Result<RailAcquisition> AcquireRailData(ArmDevices& d1, ArmDevices& d2, const Ce
   if (out.loop_failures > o.max_failure_fraction * o.readings + 2) {
     return NotConverged(fmt::format("rail: {} of {} readings could not be aimed", out.loop_failures, o.readings));
   }
-  return out;
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<RobotAcquisition> AcquireRobotData(ArmDevices& dev,
+                                          int arm_index,
+                                          const CellSetup& setup,
+                                          const calib::ArmModel& model,
+                                          const RobotAcquisitionOptions& o) {
+  RobotAcquisition out;
+  const Status s = AcquireRobotDataInto(dev, arm_index, setup, model, o, out);
+  if (s.ok()) return out;
+  if (o.partial != nullptr) *o.partial = std::move(out);
+  return s;
+}
+
+Result<RailAcquisition> AcquireRailData(ArmDevices& d1,
+                                        ArmDevices& d2,
+                                        const CellSetup& setup,
+                                        const calib::ArmModel& m1,
+                                        const calib::ArmModel& m2,
+                                        const RailAcquisitionOptions& o) {
+  RailAcquisition out;
+  const Status s = AcquireRailDataInto(d1, d2, setup, m1, m2, o, out);
+  if (s.ok()) return out;
+  if (o.partial != nullptr) *o.partial = std::move(out);
+  return s;
 }
 
 }  // namespace idi::workcell

@@ -68,6 +68,10 @@ struct RobotAcquisitionOptions {
   calib::AimLoopOptions loop;
   double max_failure_fraction = 0.1;
   CancelCheck cancelled;
+  // Not null: where an acquisition that ends with an error (a device fault, the operator's stop, too
+  // many misses) leaves what it had measured, readings and held-out readings, so that they can be
+  // saved (an hour of arm motion on the real cell) instead of lost.
+  struct RobotAcquisition* partial = nullptr;
   Status Check() const;
 };
 
@@ -102,6 +106,9 @@ struct RailAcquisitionOptions {
   calib::AimLoopOptions loop;
   double max_failure_fraction = 0.1;
   CancelCheck cancelled;
+  // Not null: where an acquisition that ends with an error leaves the readings it had taken (see
+  // RobotAcquisitionOptions::partial).
+  struct RailAcquisition* partial = nullptr;
   Status Check() const;
 };
 

@@ -117,13 +117,23 @@ class FaultingArm : public hal::ArmDevice {
 };
 
 // Robot 1's acquisition (75 readings per set, 30 held out: 180 configurations) with its arm replaced.
-Result<RobotAcquisition> AcquireWithRobotOne(sim::WorkcellTwin& twin, hal::ArmDevice& arm) {
+Result<RobotAcquisition> AcquireWithRobotOne(sim::WorkcellTwin& twin,
+                                             hal::ArmDevice& arm,
+                                             RobotAcquisition* partial = nullptr) {
   ArmDevices dev = Devices(twin, 0);
   dev.arm = &arm;
   RobotAcquisitionOptions o;
   o.per_set = 75;
   o.held_out = 30;
+  o.partial = partial;
   return AcquireRobotData(dev, 0, TwinCellSetup(twin), calib::ArmModel{}, o);
+}
+
+// N of a status "...: stopped after N readings..." (-1 without it).
+int ReadingsTakenIn(const Status& s) {
+  const std::string key = "stopped after ";
+  const std::size_t at = s.message().find(key);
+  return at == std::string::npos ? -1 : std::stoi(s.message().substr(at + key.size()));
 }
 
 // A device fault during an acquisition ends it at once with that fault, the arm stopped and the laser
@@ -134,11 +144,20 @@ TEST(CalibrationProceduresTest, ADeviceFaultEndsAnAcquisition) {
   for (const StatusCode fault : {StatusCode::kDeviceError, StatusCode::kTimeout}) {
     sim::WorkcellTwin twin({});
     FaultingArm arm(twin.arm(0), 40, fault);
-    const auto acq = AcquireWithRobotOne(twin, arm);
+    RobotAcquisition partial;
+    const auto acq = AcquireWithRobotOne(twin, arm, &partial);
     ASSERT_FALSE(acq.ok());
     EXPECT_EQ(acq.status().code(), fault) << acq.status().ToString();
     EXPECT_NE(acq.status().message().find("robot 1: acquisition: stopped after"), std::string::npos)
         << acq.status().ToString();
+    // What was measured before the fault is handed back, not lost.
+    EXPECT_GT(ReadingsTakenIn(acq.status()), 0);
+    EXPECT_EQ(static_cast<int>(partial.data.readings.size()), ReadingsTakenIn(acq.status()));
+    for (std::size_t i = 0; i < partial.data.readings.size(); ++i) {
+      EXPECT_EQ(partial.data.readings[i].set, 1);
+      EXPECT_EQ(partial.data.readings[i].row, static_cast<int>(i) + 2);
+      for (const double j : partial.data.readings[i].q) EXPECT_TRUE(std::isfinite(j));
+    }
     EXPECT_EQ(arm.moves, 41) << "no move after the fault";
     EXPECT_EQ(arm.stops, 1);
     EXPECT_FALSE(twin.laser_on(0));
@@ -151,9 +170,13 @@ TEST(CalibrationProceduresTest, ADeviceFaultEndsAnAcquisition) {
   const calib::ArmModel nominal;
   RailAcquisitionOptions ro;
   ro.readings = 60;
+  RailAcquisition rail_partial;
+  ro.partial = &rail_partial;
   const auto rail = AcquireRailData(d1, d2, TwinCellSetup(twin), nominal, nominal, ro);
   ASSERT_FALSE(rail.ok());
   EXPECT_EQ(rail.status().code(), StatusCode::kDeviceError) << rail.status().ToString();
+  EXPECT_GT(ReadingsTakenIn(rail.status()), 0);
+  EXPECT_EQ(static_cast<int>(rail_partial.readings.size()), ReadingsTakenIn(rail.status()));
   EXPECT_EQ(arm.moves, 26);
   EXPECT_EQ(arm.stops, 1);
   EXPECT_FALSE(twin.laser_on(0));
@@ -221,6 +244,44 @@ class CalibrateCommandTest : public ::testing::Test {
   std::string P(const std::string& name) const { return (dir_ / name).string(); }
   std::filesystem::path dir_;
 };
+
+// An acquisition the operator stops part-way keeps what it measured: its readings go to
+// obs.partial.csv (not obs.csv, which holds only complete acquisitions), the error names that file,
+// and the readings in it calibrate like any observations file.
+TEST_F(CalibrateCommandTest, AStoppedAcquisitionSavesTheReadingsItMeasured) {
+  RobotCommandOptions o;
+  o.sim = true;
+  o.readings = 150;
+  o.observations = P("obs.csv");
+  o.out = P("robot.yaml");
+  int polls = 0;
+  // Polled before each configuration: stopped during the held-out readings, after the 150 of both sets.
+  o.cancelled = [&polls] { return ++polls > 180; };
+  const Status s = RunCalibrateRobot(o);
+  ASSERT_EQ(s.code(), StatusCode::kCancelled) << s.ToString();
+  EXPECT_NE(s.message().find("saved in " + P("obs.partial.csv")), std::string::npos) << s.ToString();
+  EXPECT_FALSE(std::filesystem::exists(P("obs.csv")));
+  EXPECT_FALSE(std::filesystem::exists(P("robot.yaml")));
+  auto readings = ReadRobotObservations(P("obs.partial.csv"));
+  ASSERT_TRUE(readings.ok()) << readings.status().ToString();
+  EXPECT_NE(s.message().find("the " + std::to_string(readings->size()) + " readings measured"), std::string::npos);
+  EXPECT_GE(readings->size(), 140u);  // of the 150 configurations of the two sets (a few may miss)
+  EXPECT_LE(readings->size(), 150u);
+  EXPECT_EQ(readings->back().set, 2);
+  // They calibrate from the file (the twin's 1000 mm rail move).
+  RobotCommandOptions again;
+  again.observations = P("obs.partial.csv");
+  again.distance_mm = 1000.0;
+  again.out = P("robot.yaml");
+  const Status s2 = RunCalibrateRobot(again);
+  EXPECT_TRUE(s2.ok()) << s2.ToString();
+  EXPECT_TRUE(std::filesystem::exists(P("robot.yaml")));
+  // Stopped before any reading: nothing to save, no file.
+  o.cancelled = [] { return true; };
+  o.observations = P("obs2.csv");
+  EXPECT_EQ(RunCalibrateRobot(o).code(), StatusCode::kCancelled);
+  EXPECT_FALSE(std::filesystem::exists(P("obs2.partial.csv")));
+}
 
 TEST_F(CalibrateCommandTest, SimRunWritesFilesThatTheFileRunReproduces) {
   ASSERT_EQ(Run({"calibrate", "robot", "--sim", "--readings", "150", "--observations", P("obs.csv"), "--validate",
