@@ -127,6 +127,10 @@ void WorkcellService::SafeStop(const std::string& why) {
     std::lock_guard<std::mutex> lock(mu_);
     queue_.clear();
     cancel_ = true;
+    // A reset asked for before this stop and not yet begun is dropped; one under way is abandoned
+    // (StartUp sees the count change).
+    reset_requested_ = false;
+    ++stops_;
   }
   const idi::Status st = devices_->StopAll();
   if (!st.ok()) spdlog::error("service: stopping the devices failed: {}", st.message());
@@ -158,9 +162,16 @@ std::string WorkcellService::MakeRunDir(const std::string& job) {
   return dir.string();
 }
 
-idi::Status WorkcellService::StartUp() {
+idi::Status WorkcellService::StartUp(uint64_t stops_before) {
   SetState(ServiceState::kConnecting, "connecting to the devices");
   IDI_RETURN_IF_ERROR(devices_->Connect().WithContext("connecting"));
+  {
+    // Connect cleared the devices' stop flag: a stop that came after this start-up was asked for and
+    // before that (which the devices no longer know of) still ends it. A later stop the devices
+    // refuse the next operation for.
+    std::lock_guard<std::mutex> lock(mu_);
+    if (stops_ != stops_before) return idi::Cancelled("connecting: stopped by the operator; send reset to start again");
+  }
   SetState(ServiceState::kHoming, "homing");
   IDI_RETURN_IF_ERROR(devices_->Home().WithContext("homing"));
   SetState(ServiceState::kCheckingCalibration, "checking the calibration's age and completeness");
@@ -203,7 +214,12 @@ idi::Status WorkcellService::Run() {
   const auto watchdog = WatchdogPeriod();
   const auto tick = watchdog ? std::chrono::duration_cast<std::chrono::milliseconds>(*watchdog / 3)
                              : std::chrono::milliseconds(200);
-  idi::Status st = StartUp();
+  uint64_t stops_before = 0;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stops_before = stops_;
+  }
+  idi::Status st = StartUp(stops_before);
   if (!st.ok()) {
     {
       std::lock_guard<std::mutex> lock(mu_);  // the control socket may already read it
@@ -234,6 +250,7 @@ idi::Status WorkcellService::Run() {
     }
     if (state_ == ServiceState::kFault && reset_requested_) {
       reset_requested_ = false;
+      const uint64_t stops_at_reset = stops_;
       lock.unlock();
       // Connecting and homing take up to about a minute on the real cell (the pan-tilt units' moves,
       // the hand's initialisation, each with its own timeout): the watchdog is kept fed meanwhile, or
@@ -248,7 +265,7 @@ idi::Status WorkcellService::Run() {
           }
         }
       });
-      const idi::Status again = StartUp();
+      const idi::Status again = StartUp(stops_at_reset);
       starting = false;
       pinger.join();
       if (again.ok()) {

@@ -93,7 +93,9 @@ class WorkcellService {
 
  private:
   void SetState(ServiceState s, const std::string& why);
-  idi::Status StartUp();
+  // Connects, homes and checks the calibration; Cancelled if the operator stopped after `stops_before`
+  // (stops_ when this start-up was asked for).
+  idi::Status StartUp(uint64_t stops_before);
   void WorkerLoop();
   bool IsCalibrationJob(const std::string& name) const;  // one of options_.calibration_jobs
   // With mu_ held, after a calibration job: queues the jobs of the items it dropped (see
@@ -125,6 +127,9 @@ class WorkcellService {
   nlohmann::json last_result_;
   std::string last_error_;
   bool reset_requested_ = false;
+  // Operator stops so far (SafeStop): a start-up (the first, or a reset) that a stop followed is
+  // abandoned, even when the stop came before the devices' Connect, which clears their own stop.
+  uint64_t stops_ = 0;
   bool startup_jobs_queued_ = false;
   int jobs_failed_ = 0;
   std::string first_failure_;

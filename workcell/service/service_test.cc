@@ -250,6 +250,74 @@ TEST(ServiceTest, DeviceFaultParksInFaultUntilReset) {
   fs::remove_all(opt.state_dir);
 }
 
+// An operator's stop sent after a reset and before the devices' Connect (which clears their stop: the
+// start of a restart the operator asked for) ends that reset: the cell stays in fault, nothing is
+// homed. Before, the reset's Connect erased the later stop and the cell homed and went idle.
+TEST(ServiceTest, AStopAfterAResetEndsThatReset) {
+  // Devices like the hardware set: Connect clears their stop flag, Home refuses while it is set. The
+  // reset's Connect waits (before clearing) until the test has sent the stop.
+  class GatedDevices : public FakeDevices {
+   public:
+    Status Connect() override {
+      if (gate) {
+        entered = true;
+        while (!release) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+      stopped = false;
+      return connect_status;
+    }
+    Status Home() override {
+      if (stopped) return Cancelled("homing: stopped");
+      ++homes;
+      return Status::Ok();
+    }
+    Status StopAll() override {
+      stopped = true;
+      return FakeDevices::StopAll();
+    }
+    std::atomic<bool> gate{false}, entered{false}, release{false}, stopped{false};
+    std::atomic<int> homes{0};
+  } dev;
+  dev.connect_status = Timeout("arm 2: no answer");
+  ServiceOptions opt;
+  opt.state_dir = TempState("stop_after_reset");
+  WorkcellService svc(opt, &dev, {});
+  std::thread t([&] { (void)svc.Run(); });
+  // The service ends and its thread is joined however the test ends (a failed ASSERT too).
+  struct Ender {
+    WorkcellService& svc;
+    std::thread& t;
+    ~Ender() {
+      svc.RequestShutdown();
+      if (t.joinable()) t.join();
+    }
+  } ender{svc, t};
+  ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kFault; }));
+  dev.connect_status = Status::Ok();
+  dev.gate = true;
+  ControlRequest reset;
+  reset.command = ControlCommand::kReset;
+  ASSERT_TRUE(svc.Handle(reset)["ok"].get<bool>());
+  ASSERT_TRUE(WaitFor([&] { return dev.entered.load(); }));
+  ControlRequest stop;
+  stop.command = ControlCommand::kStop;
+  EXPECT_TRUE(svc.Handle(stop)["ok"].get<bool>());
+  dev.release = true;
+  ASSERT_TRUE(WaitFor([&] {
+    return svc.state() == ServiceState::kFault &&
+           svc.StatusJson().dump().find("stopped by the operator") != std::string::npos;
+  })) << svc.StatusJson().dump();
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_EQ(svc.state(), ServiceState::kFault);
+  EXPECT_EQ(dev.homes, 0) << "the cell homed after the operator's stop";
+  // A stop before a reset begins drops it; a reset after the stop works.
+  dev.gate = false;
+  ASSERT_TRUE(svc.Handle(reset)["ok"].get<bool>());
+  ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kIdle; }));
+  EXPECT_EQ(dev.homes, 1);
+  fs::remove_all(opt.state_dir);
+}
+
 // A reset reconnects and homes (up to about a minute on the real cell): systemd's watchdog must keep
 // hearing from the service meanwhile. The notifications go to a socket of the test's own.
 TEST(ServiceTest, ResetKeepsTheWatchdogFed) {
