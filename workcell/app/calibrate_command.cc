@@ -20,50 +20,69 @@
 namespace idi::workcell {
 namespace {
 
-// Where the readings of an acquisition that ended early go: FILE.partial.csv beside the observations
-// file (or, without one, beside the result file).
-std::string PartialPath(const std::string& observations, const std::string& out) {
-  const std::filesystem::path p(observations.empty() ? out : observations);
-  return (p.parent_path() / (p.stem().string() + ".partial.csv")).string();
-}
-
-// An acquisition's failure, after `write` saved the readings it had measured (if any) in `path`; the
-// status says where they are (or why they could not be saved).
-Status KeepPartial(const Status& failure,
-                   std::size_t readings,
-                   const std::string& path,
-                   const std::function<Status(const std::string&)>& write) {
-  if (readings == 0) return failure;
-  const Status saved = write(path);
-  if (!saved.ok()) {
-    return Status(
-        failure.code(),
-        fmt::format(
-            "{}; the {} readings measured could not be saved: {}", failure.message(), readings, saved.message()));
+// Where the readings of an acquisition that ended early go: FILE.partial.csv beside `file` (the
+// observations file, or else the result file), FILE.partial-2.csv etc. when an earlier stopped run
+// left one there (it is never replaced).
+std::string PartialPath(const std::string& file) {
+  const std::filesystem::path p(file);
+  std::filesystem::path candidate = p.parent_path() / (p.stem().string() + ".partial.csv");
+  for (int k = 2; std::filesystem::exists(candidate); ++k) {
+    candidate = p.parent_path() / fmt::format("{}.partial-{}.csv", p.stem().string(), k);
   }
-  spdlog::warn("the {} readings measured before the acquisition ended are saved in {}", readings, path);
-  return Status(failure.code(),
-                fmt::format("{}; the {} readings measured are saved in {}", failure.message(), readings, path));
+  return candidate.string();
 }
 
-// AcquireRobotData, saving what it measured in PartialPath(observations, out) when it ends early.
+// `what`'s readings (n of them) written by `write` to PartialPath(beside): a note for the failure's
+// message saying where they are, or why they could not be saved; empty for none.
+std::string SavePartial(const char* what,
+                        std::size_t n,
+                        const std::string& beside,
+                        const std::function<Status(const std::string&)>& write) {
+  if (n == 0) return "";
+  const std::string path = PartialPath(beside);
+  const Status saved = write(path);
+  if (!saved.ok()) return fmt::format("; the {} {} measured could not be saved: {}", n, what, saved.message());
+  spdlog::warn("the {} {} measured before the acquisition ended are saved in {}", n, what, path);
+  return fmt::format("; the {} {} measured are saved in {}", n, what, path);
+}
+
+// AcquireRobotData; when it ends early, the readings it measured are saved beside the observations file
+// (or `out`), the held-out ones beside the validation file (if one is named), and its error says where.
 Result<RobotAcquisition> AcquireRobotKeepingPartial(ArmDevices& dev,
                                                     int arm,
                                                     const CellSetup& setup,
                                                     RobotAcquisitionOptions ao,
                                                     const std::string& observations,
+                                                    const std::string& validate,
                                                     const std::string& out) {
   RobotAcquisition partial;
   ao.partial = &partial;
   auto acq = AcquireRobotData(dev, arm, setup, calib::ArmModel{}, ao);
   if (acq.ok()) return acq;
-  return KeepPartial(
-      acq.status(), partial.data.readings.size(), PartialPath(observations, out), [&](const std::string& path) {
-        return WriteRobotObservations(path, partial.data.readings);
+  const std::vector<calib::AimReading>& r = partial.data.readings;
+  std::string note =
+      SavePartial("readings", r.size(), observations.empty() ? out : observations, [&](const std::string& path) {
+        return WriteRobotObservations(path, r);
       });
+  // What a calibration from that file needs to be told (both sets are needed at all).
+  if (!r.empty() && r.back().set == 2) {
+    const bool translate = ao.method == calib::TranslationMethod::kTranslate;
+    const double d = translate ? partial.rail_readings_mm[1] - partial.rail_readings_mm[0] : ao.distance_mm;
+    note += fmt::format(
+        " (calibrate from it with --method {} --distance-mm {:.3f})", translate ? "translate" : "two-points", d);
+  }
+  if (!validate.empty()) {
+    std::vector<calib::AimReading> held;
+    for (const Joints& q : partial.held_out) held.push_back({1, q, 0});
+    note += SavePartial("held-out readings", held.size(), validate, [&](const std::string& path) {
+      return WriteRobotObservations(path, held);
+    });
+  }
+  return Status(acq.status().code(), acq.status().message() + note);
 }
 
-// AcquireRailData, likewise.
+// AcquireRailData; when it ends early, the readings it took are saved beside the observations file (or
+// `out`), and its error says where.
 Result<RailAcquisition> AcquireRailKeepingPartial(ArmDevices& d1,
                                                   ArmDevices& d2,
                                                   const CellSetup& setup,
@@ -76,10 +95,11 @@ Result<RailAcquisition> AcquireRailKeepingPartial(ArmDevices& d1,
   ao.partial = &partial;
   auto acq = AcquireRailData(d1, d2, setup, arm1, arm2, ao);
   if (acq.ok()) return acq;
-  return KeepPartial(
-      acq.status(), partial.readings.size(), PartialPath(observations, out), [&](const std::string& path) {
+  const std::string note = SavePartial(
+      "readings", partial.readings.size(), observations.empty() ? out : observations, [&](const std::string& path) {
         return WriteRailObservations(path, partial.readings);
       });
+  return Status(acq.status().code(), acq.status().message() + note);
 }
 
 nlohmann::json SpreadJson(const calib::SpreadStats& s) {
@@ -294,8 +314,9 @@ Status RunCalibrateRobot(const RobotCommandOptions& o) {
     ao.cancelled = o.cancelled;
     spdlog::info("digital twin (seed {}): calibrating robot {} by the {} method, {} readings", o.seed, o.arm, o.method,
                  2 * ao.per_set);
-    IDI_ASSIGN_OR_RETURN(const RobotAcquisition acq,
-                         AcquireRobotKeepingPartial(dev, arm, SetupFromTwin(*twin), ao, o.observations, o.out));
+    IDI_ASSIGN_OR_RETURN(
+        const RobotAcquisition acq,
+        AcquireRobotKeepingPartial(dev, arm, SetupFromTwin(*twin), ao, o.observations, o.validate, o.out));
     data = acq.data;
     held_out.push_back(acq.held_out);
     co.noise.plane_normal = acq.plane_normal_in_base;
@@ -402,9 +423,16 @@ Status RunCalibrateRobot(const RobotCommandOptions& o) {
 
 namespace {
 
-// Robot k's model for the rail calibration: from its file, or (--sim) calibrated in the twin first.
-Result<calib::ArmModel> ArmForRtu(const std::string& file, bool sim, sim::WorkcellTwin* twin, int k, unsigned seed,
-                                  double spot_sigma_mm, const CancelCheck& cancelled) {
+// Robot k's model for the rail calibration: from its file, or (--sim) calibrated in the twin first
+// (readings of an acquisition that ends early saved beside `file`, or else beside `out`, the rail's).
+Result<calib::ArmModel> ArmForRtu(const std::string& file,
+                                  bool sim,
+                                  sim::WorkcellTwin* twin,
+                                  int k,
+                                  unsigned seed,
+                                  double spot_sigma_mm,
+                                  const CancelCheck& cancelled,
+                                  const std::string& out) {
   if (!file.empty() && (!sim || std::filesystem::exists(file))) {
     if (sim) {
       // The rail is solved with this twin's arms: a file from another twin's (or from the real cell)
@@ -444,7 +472,14 @@ Result<calib::ArmModel> ArmForRtu(const std::string& file, bool sim, sim::Workce
   IDI_ASSIGN_OR_RETURN(
       const RobotAcquisition acq,
       AcquireRobotKeepingPartial(
-          dev, k, SetupFromTwin(*twin), ao, "", file.empty() ? fmt::format("robot{}.yaml", k + 1) : file));
+          dev,
+          k,
+          SetupFromTwin(*twin),
+          ao,
+          "",
+          "",
+          file.empty() ? (std::filesystem::path(out).parent_path() / fmt::format("robot{}.yaml", k + 1)).string()
+                       : file));
   calib::RobotCalibrationOptions co;
   co.noise.spot_sigma_mm = spot_sigma_mm;
   co.noise.plane_normal = acq.plane_normal_in_base;
@@ -468,8 +503,10 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
   IDI_RETURN_IF_ERROR(CheckSigma(o.rail_sigma_mm, "calibrate rtu: --rail-sigma-mm"));
   std::unique_ptr<sim::WorkcellTwin> twin;
   if (o.sim) twin = std::make_unique<sim::WorkcellTwin>(TwinOptions(o.seed, o.spot_sigma_mm));
-  IDI_ASSIGN_OR_RETURN(const calib::ArmModel arm1, ArmForRtu(o.robot1, o.sim, twin.get(), 0, o.seed, o.spot_sigma_mm, o.cancelled));
-  IDI_ASSIGN_OR_RETURN(const calib::ArmModel arm2, ArmForRtu(o.robot2, o.sim, twin.get(), 1, o.seed, o.spot_sigma_mm, o.cancelled));
+  IDI_ASSIGN_OR_RETURN(const calib::ArmModel arm1,
+                       ArmForRtu(o.robot1, o.sim, twin.get(), 0, o.seed, o.spot_sigma_mm, o.cancelled, o.out));
+  IDI_ASSIGN_OR_RETURN(const calib::ArmModel arm2,
+                       ArmForRtu(o.robot2, o.sim, twin.get(), 1, o.seed, o.spot_sigma_mm, o.cancelled, o.out));
   std::vector<calib::RailReading> readings, held_out;
   nlohmann::json acquisition;
   if (o.sim) {
@@ -497,11 +534,15 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
     ho.cancelled = o.cancelled;
     const auto held = AcquireRailData(d1, d2, setup, arm1, arm2, ho);
     if (!held.ok()) {
-      // The readings above are kept (again in the observations file, if there is one).
-      return KeepPartial(held.status(),
-                         readings.size(),
-                         o.observations.empty() ? PartialPath("", o.out) : o.observations,
-                         [&](const std::string& path) { return WriteRailObservations(path, readings); });
+      // The main acquisition is complete: its readings are in the observations file, or saved now.
+      const std::string where =
+          o.observations.empty()
+              ? SavePartial("readings of the complete acquisition",
+                            readings.size(),
+                            o.out,
+                            [&](const std::string& path) { return WriteRailObservations(path, readings); })
+              : fmt::format("; the {} readings of the complete acquisition are in {}", readings.size(), o.observations);
+      return Status(held.status().code(), "rail: held-out readings: " + held.status().message() + where);
     }
     // One held-out point: the readings of the first chosen point.
     for (std::size_t i = 0; i < held->readings.size(); i += 2) held_out.push_back(held->readings[i]);

@@ -246,41 +246,86 @@ class CalibrateCommandTest : public ::testing::Test {
 };
 
 // An acquisition the operator stops part-way keeps what it measured: its readings go to
-// obs.partial.csv (not obs.csv, which holds only complete acquisitions), the error names that file,
-// and the readings in it calibrate like any observations file.
+// obs.partial.csv (not obs.csv, which holds only complete acquisitions) and its held-out readings to
+// val.partial.csv; the error names those files and the method and rail distance to calibrate with;
+// the readings calibrate like any observations file; a second stopped run does not replace the first's.
 TEST_F(CalibrateCommandTest, AStoppedAcquisitionSavesTheReadingsItMeasured) {
   RobotCommandOptions o;
   o.sim = true;
   o.readings = 150;
   o.observations = P("obs.csv");
+  o.validate = P("val.csv");
   o.out = P("robot.yaml");
   int polls = 0;
-  // Polled before each configuration: stopped during the held-out readings, after the 150 of both sets.
+  // Polled before each configuration: stopped during the held-out readings (60 of them), after the
+  // 150 of both sets.
   o.cancelled = [&polls] { return ++polls > 180; };
   const Status s = RunCalibrateRobot(o);
   ASSERT_EQ(s.code(), StatusCode::kCancelled) << s.ToString();
   EXPECT_NE(s.message().find("saved in " + P("obs.partial.csv")), std::string::npos) << s.ToString();
-  EXPECT_FALSE(std::filesystem::exists(P("obs.csv")));
-  EXPECT_FALSE(std::filesystem::exists(P("robot.yaml")));
+  EXPECT_NE(s.message().find("saved in " + P("val.partial.csv")), std::string::npos) << s.ToString();
+  for (const char* f : {"obs.csv", "val.csv", "robot.yaml"}) EXPECT_FALSE(std::filesystem::exists(P(f))) << f;
   auto readings = ReadRobotObservations(P("obs.partial.csv"));
   ASSERT_TRUE(readings.ok()) << readings.status().ToString();
   EXPECT_NE(s.message().find("the " + std::to_string(readings->size()) + " readings measured"), std::string::npos);
   EXPECT_GE(readings->size(), 140u);  // of the 150 configurations of the two sets (a few may miss)
   EXPECT_LE(readings->size(), 150u);
   EXPECT_EQ(readings->back().set, 2);
-  // They calibrate from the file (the twin's 1000 mm rail move).
+  auto held = ReadRobotObservations(P("val.partial.csv"));
+  ASSERT_TRUE(held.ok()) << held.status().ToString();
+  EXPECT_GE(held->size(), 25u);
+  EXPECT_LE(held->size(), 30u);
+  // The rail move measured between the sets, as the message gives it (the twin's 1000 mm, give or take
+  // the rail's repeatability).
+  const std::string key = "--distance-mm ";
+  const std::size_t at = s.message().find("--method translate " + key);
+  ASSERT_NE(at, std::string::npos) << s.ToString();
+  const double d = std::stod(s.message().substr(at + std::string("--method translate ").size() + key.size()));
+  EXPECT_NEAR(d, 1000.0, 1.0);
   RobotCommandOptions again;
   again.observations = P("obs.partial.csv");
-  again.distance_mm = 1000.0;
+  again.distance_mm = d;
   again.out = P("robot.yaml");
   const Status s2 = RunCalibrateRobot(again);
   EXPECT_TRUE(s2.ok()) << s2.ToString();
   EXPECT_TRUE(std::filesystem::exists(P("robot.yaml")));
+  // Stopped again later: a file of its own; the first is left as it was.
+  const auto first_size = std::filesystem::file_size(P("obs.partial.csv"));
+  polls = 0;
+  o.cancelled = [&polls] { return ++polls > 40; };
+  const Status s3 = RunCalibrateRobot(o);
+  EXPECT_EQ(s3.code(), StatusCode::kCancelled);
+  EXPECT_NE(s3.message().find("saved in " + P("obs.partial-2.csv")), std::string::npos) << s3.ToString();
+  EXPECT_EQ(std::filesystem::file_size(P("obs.partial.csv")), first_size);
+  EXPECT_EQ(s3.message().find("--distance-mm"), std::string::npos) << "only set 1 measured: no calibration";
   // Stopped before any reading: nothing to save, no file.
   o.cancelled = [] { return true; };
   o.observations = P("obs2.csv");
   EXPECT_EQ(RunCalibrateRobot(o).code(), StatusCode::kCancelled);
   EXPECT_FALSE(std::filesystem::exists(P("obs2.partial.csv")));
+}
+
+// The rail calibration's acquisition stopped part-way (after both arms were calibrated in the twin):
+// its readings are saved beside the observations file.
+TEST_F(CalibrateCommandTest, AStoppedRailAcquisitionSavesTheReadingsItTook) {
+  RtuCommandOptions o;
+  o.sim = true;
+  o.readings = 60;
+  o.robot1 = P("robot1.yaml");
+  o.robot2 = P("robot2.yaml");
+  o.observations = P("rail_obs.csv");
+  o.out = P("rail.yaml");
+  int polls = 0;
+  // Once both arms are calibrated (their files written), 25 rail readings are taken.
+  o.cancelled = [&] { return std::filesystem::exists(P("robot2.yaml")) && ++polls > 25; };
+  const Status s = RunCalibrateRtu(o);
+  ASSERT_EQ(s.code(), StatusCode::kCancelled) << s.ToString();
+  EXPECT_NE(s.message().find("saved in " + P("rail_obs.partial.csv")), std::string::npos) << s.ToString();
+  EXPECT_FALSE(std::filesystem::exists(P("rail_obs.csv")));
+  auto readings = ReadRailObservations(P("rail_obs.partial.csv"));
+  ASSERT_TRUE(readings.ok()) << readings.status().ToString();
+  EXPECT_GE(readings->size(), 20u);
+  EXPECT_LE(readings->size(), 25u);
 }
 
 TEST_F(CalibrateCommandTest, SimRunWritesFilesThatTheFileRunReproduces) {

@@ -165,12 +165,13 @@ std::string WorkcellService::MakeRunDir(const std::string& job) {
 idi::Status WorkcellService::StartUp(uint64_t stops_before) {
   SetState(ServiceState::kConnecting, "connecting to the devices");
   IDI_RETURN_IF_ERROR(devices_->Connect().WithContext("connecting"));
+  // Connect cleared the devices' stop flag: a stop that came after this start-up was asked for and
+  // before that (which the devices no longer know of) still ends it; so does one during homing (a
+  // device set that does not refuse operations after a stop) or the calibration check.
+  auto stopped = [&] { return stops_ != stops_before; };  // with mu_ held
   {
-    // Connect cleared the devices' stop flag: a stop that came after this start-up was asked for and
-    // before that (which the devices no longer know of) still ends it. A later stop the devices
-    // refuse the next operation for.
     std::lock_guard<std::mutex> lock(mu_);
-    if (stops_ != stops_before) return idi::Cancelled("connecting: stopped by the operator; send reset to start again");
+    if (stopped()) return idi::Cancelled("connecting: stopped by the operator; send reset to start again");
   }
   SetState(ServiceState::kHoming, "homing");
   IDI_RETURN_IF_ERROR(devices_->Home().WithContext("homing"));
@@ -186,16 +187,15 @@ idi::Status WorkcellService::StartUp(uint64_t stops_before) {
       if (current->items.count(item) == 0) why = "calibration lacks " + item;
     }
   }
-  if (!why.empty()) {
-    spdlog::warn("service: {}", why);
-    if (options_.recalibrate_when_stale) {
-      std::lock_guard<std::mutex> lock(mu_);
-      for (const std::string& job : options_.calibration_jobs) {
-        if (jobs_.count(job) != 0) queue_.push_back({next_job_id_++, job, nlohmann::json::object()});
-      }
+  if (!why.empty()) spdlog::warn("service: {}", why);
+  // Under the lock a stop clears the queue with: no job is queued after a stop.
+  std::lock_guard<std::mutex> lock(mu_);
+  if (stopped()) return idi::Cancelled("starting up: stopped by the operator; send reset to start again");
+  if (!why.empty() && options_.recalibrate_when_stale) {
+    for (const std::string& job : options_.calibration_jobs) {
+      if (jobs_.count(job) != 0) queue_.push_back({next_job_id_++, job, nlohmann::json::object()});
     }
   }
-  std::lock_guard<std::mutex> lock(mu_);
   if (!startup_jobs_queued_) {
     startup_jobs_queued_ = true;
     for (const auto& [job, args] : options_.startup_jobs) {
@@ -214,12 +214,8 @@ idi::Status WorkcellService::Run() {
   const auto watchdog = WatchdogPeriod();
   const auto tick = watchdog ? std::chrono::duration_cast<std::chrono::milliseconds>(*watchdog / 3)
                              : std::chrono::milliseconds(200);
-  uint64_t stops_before = 0;
-  {
-    std::lock_guard<std::mutex> lock(mu_);
-    stops_before = stops_;
-  }
-  idi::Status st = StartUp(stops_before);
+  // Any stop since the service began (the control socket may already be open) ends the first start-up.
+  idi::Status st = StartUp(0);
   if (!st.ok()) {
     {
       std::lock_guard<std::mutex> lock(mu_);  // the control socket may already read it

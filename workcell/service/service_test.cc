@@ -252,22 +252,22 @@ TEST(ServiceTest, DeviceFaultParksInFaultUntilReset) {
 
 // An operator's stop sent after a reset and before the devices' Connect (which clears their stop: the
 // start of a restart the operator asked for) ends that reset: the cell stays in fault, nothing is
-// homed. Before, the reset's Connect erased the later stop and the cell homed and went idle.
+// homed. Before, the reset's Connect erased the later stop and the cell homed and went idle. So does a
+// stop during homing on devices that do not refuse operations after a stop (the sim's), and no job is
+// queued after it.
 TEST(ServiceTest, AStopAfterAResetEndsThatReset) {
-  // Devices like the hardware set: Connect clears their stop flag, Home refuses while it is set. The
-  // reset's Connect waits (before clearing) until the test has sent the stop.
+  // Devices like the hardware set: Connect clears their stop flag, Home refuses while it is set (unless
+  // `home_ignores_stop`). A gated Connect or Home waits until the test has sent its stop.
   class GatedDevices : public FakeDevices {
    public:
     Status Connect() override {
-      if (gate) {
-        entered = true;
-        while (!release) std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      }
+      Wait(gate_connect);
       stopped = false;
       return connect_status;
     }
     Status Home() override {
-      if (stopped) return Cancelled("homing: stopped");
+      Wait(gate_home);
+      if (stopped && !home_ignores_stop) return Cancelled("homing: stopped");
       ++homes;
       return Status::Ok();
     }
@@ -275,46 +275,72 @@ TEST(ServiceTest, AStopAfterAResetEndsThatReset) {
       stopped = true;
       return FakeDevices::StopAll();
     }
-    std::atomic<bool> gate{false}, entered{false}, release{false}, stopped{false};
+    void Wait(const std::atomic<bool>& gate) {
+      if (!gate) return;
+      entered = true;
+      while (!release) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    std::atomic<bool> gate_connect{false}, gate_home{false}, home_ignores_stop{false};
+    std::atomic<bool> entered{false}, release{false}, stopped{false};
     std::atomic<int> homes{0};
   } dev;
   dev.connect_status = Timeout("arm 2: no answer");
   ServiceOptions opt;
   opt.state_dir = TempState("stop_after_reset");
-  WorkcellService svc(opt, &dev, {});
+  std::atomic<int> runs{0};
+  opt.startup_jobs = {{"count", nlohmann::json::object()}};
+  WorkcellService svc(opt, &dev, {CountingJob(&runs)});
   std::thread t([&] { (void)svc.Run(); });
   // The service ends and its thread is joined however the test ends (a failed ASSERT too).
   struct Ender {
     WorkcellService& svc;
+    GatedDevices& dev;
     std::thread& t;
     ~Ender() {
+      dev.release = true;
       svc.RequestShutdown();
       if (t.joinable()) t.join();
     }
-  } ender{svc, t};
+  } ender{svc, dev, t};
   ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kFault; }));
   dev.connect_status = Status::Ok();
-  dev.gate = true;
   ControlRequest reset;
   reset.command = ControlCommand::kReset;
-  ASSERT_TRUE(svc.Handle(reset)["ok"].get<bool>());
-  ASSERT_TRUE(WaitFor([&] { return dev.entered.load(); }));
   ControlRequest stop;
   stop.command = ControlCommand::kStop;
-  EXPECT_TRUE(svc.Handle(stop)["ok"].get<bool>());
-  dev.release = true;
-  ASSERT_TRUE(WaitFor([&] {
+  auto faulted_by_stop = [&] {
     return svc.state() == ServiceState::kFault &&
            svc.StatusJson().dump().find("stopped by the operator") != std::string::npos;
-  })) << svc.StatusJson().dump();
+  };
+  // The stop while the reset's Connect has not yet cleared the devices' flag.
+  dev.gate_connect = true;
+  ASSERT_TRUE(svc.Handle(reset)["ok"].get<bool>());
+  ASSERT_TRUE(WaitFor([&] { return dev.entered.load(); }));
+  EXPECT_TRUE(svc.Handle(stop)["ok"].get<bool>());
+  dev.release = true;
+  EXPECT_TRUE(WaitFor(faulted_by_stop)) << svc.StatusJson().dump();
   std::this_thread::sleep_for(std::chrono::milliseconds(50));
   EXPECT_EQ(svc.state(), ServiceState::kFault);
   EXPECT_EQ(dev.homes, 0) << "the cell homed after the operator's stop";
-  // A stop before a reset begins drops it; a reset after the stop works.
-  dev.gate = false;
+  // The stop while homing, on devices that go on after a stop.
+  dev.gate_connect = false;
+  dev.gate_home = true;
+  dev.home_ignores_stop = true;
+  dev.entered = false;
+  dev.release = false;
   ASSERT_TRUE(svc.Handle(reset)["ok"].get<bool>());
-  ASSERT_TRUE(WaitFor([&] { return svc.state() == ServiceState::kIdle; }));
-  EXPECT_EQ(dev.homes, 1);
+  ASSERT_TRUE(WaitFor([&] { return dev.entered.load(); }));
+  EXPECT_TRUE(svc.Handle(stop)["ok"].get<bool>());
+  dev.release = true;
+  EXPECT_TRUE(WaitFor(faulted_by_stop)) << svc.StatusJson().dump();
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_EQ(svc.state(), ServiceState::kFault);
+  EXPECT_EQ(runs, 0) << "a start-up job ran after the operator's stop";
+  // A reset with no stop after it works, and queues the start-up job.
+  dev.gate_home = false;
+  ASSERT_TRUE(svc.Handle(reset)["ok"].get<bool>());
+  EXPECT_TRUE(WaitFor([&] { return runs == 1; }));
+  EXPECT_EQ(dev.homes, 2);
   fs::remove_all(opt.state_dir);
 }
 
