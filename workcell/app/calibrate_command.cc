@@ -622,17 +622,20 @@ void AddCalibrateCommand(CliApp& cli) {
   CLI::App* robot = cli.AddCommand(cal, "robot",
                                    "calibrate an RX-130 with its laser tool from joint readings aimed at a fixed point",
                                    [ro] { return RunCalibrateRobot(*ro); });
-  robot->add_option("--observations", ro->observations,
+  robot->add_option("--observations",
+                    ro->observations,
                     "CSV 'set,j1_deg,...,j6_deg' (set 1/2: before/after the translation, or first/second point); "
-                    "with --sim: where to save the acquired readings");
+                    "with --sim: where to save the acquired readings (an acquisition that ends early saves what "
+                    "it measured in FILE.partial.csv)");
   robot->add_option("--distance-mm", ro->distance_mm, "the known distance D: rail move or spacing of the two points");
   robot->add_option("--method", ro->method, "translate (rail move by D) or two-points (second point D away)")
       ->check(CLI::IsMember({"translate", "two-points"}))
       ->capture_default_str();
   robot->add_option("--out", ro->out, "result YAML (written atomically)")->required();
-  robot->add_option("--validate", ro->validate,
+  robot->add_option("--validate",
+                    ro->validate,
                     "held-out readings (same CSV) aimed at one point per set: spread before/after (§4.5.4); "
-                    "with --sim: where to save them");
+                    "with --sim: where to save them (FILE.partial.csv if the acquisition ends early)");
   robot->add_option("--report", ro->report, "JSON report");
   robot->add_option("--plots", ro->plots, "folder for PNG plots (cost per iteration, held-out spread)");
   robot->add_option("--spot-sigma-mm", ro->spot_sigma_mm, "spot noise on the wall per axis (noise model; twin camera)")
@@ -648,8 +651,11 @@ void AddCalibrateCommand(CliApp& cli) {
   auto to = std::make_shared<RtuCommandOptions>();
   CLI::App* rtu = cli.AddCommand(cal, "rtu", "calibrate the robot-to-robot transform on the rail from both lasers on one point",
                                  [to] { return RunCalibrateRtu(*to); });
-  rtu->add_option("--observations", to->observations,
-                  "CSV 'r1_j1_deg..r1_j6_deg,r1_rail_mm,r2_j1_deg..r2_j6_deg,r2_rail_mm'; with --sim: where to save them");
+  rtu->add_option(
+      "--observations",
+      to->observations,
+      "CSV 'r1_j1_deg..r1_j6_deg,r1_rail_mm,r2_j1_deg..r2_j6_deg,r2_rail_mm'; with --sim: where to save them "
+      "(FILE.partial.csv if the acquisition ends early)");
   rtu->add_option("--robot1", to->robot1, "robot 1's calibration (calibrate robot output); with --sim: made if missing");
   rtu->add_option("--robot2", to->robot2, "robot 2's calibration; with --sim: made if missing");
   rtu->add_option("--out", to->out, "result YAML (psi_x_mm, psi_y_mm, psi_z_mm, psi_alpha_deg with std)")->required();
