@@ -308,36 +308,34 @@ TEST(ServiceTest, AStopAfterAResetEndsThatReset) {
   reset.command = ControlCommand::kReset;
   ControlRequest stop;
   stop.command = ControlCommand::kStop;
-  auto faulted_by_stop = [&] {
-    return svc.state() == ServiceState::kFault &&
-           svc.StatusJson().dump().find("stopped by the operator") != std::string::npos;
+  // A reset whose gated step (`gate`) gets the operator's stop before it goes on: the cell must stay in
+  // fault, for that stop.
+  auto reset_then_stop = [&](std::atomic<bool>& gate) {
+    dev.gate_connect = false;
+    dev.gate_home = false;
+    dev.entered = false;
+    dev.release = false;
+    gate = true;
+    ASSERT_TRUE(svc.Handle(reset)["ok"].get<bool>());
+    ASSERT_TRUE(WaitFor([&] { return dev.entered.load(); }));
+    EXPECT_TRUE(svc.Handle(stop)["ok"].get<bool>());
+    dev.release = true;
+    EXPECT_TRUE(WaitFor([&] {
+      return svc.state() == ServiceState::kFault &&
+             svc.StatusJson().dump().find("stopped by the operator") != std::string::npos;
+    })) << svc.StatusJson().dump();
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    EXPECT_EQ(svc.state(), ServiceState::kFault);
+    gate = false;
   };
   // The stop while the reset's Connect has not yet cleared the devices' flag.
-  dev.gate_connect = true;
-  ASSERT_TRUE(svc.Handle(reset)["ok"].get<bool>());
-  ASSERT_TRUE(WaitFor([&] { return dev.entered.load(); }));
-  EXPECT_TRUE(svc.Handle(stop)["ok"].get<bool>());
-  dev.release = true;
-  EXPECT_TRUE(WaitFor(faulted_by_stop)) << svc.StatusJson().dump();
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  EXPECT_EQ(svc.state(), ServiceState::kFault);
+  reset_then_stop(dev.gate_connect);
   EXPECT_EQ(dev.homes, 0) << "the cell homed after the operator's stop";
   // The stop while homing, on devices that go on after a stop.
-  dev.gate_connect = false;
-  dev.gate_home = true;
   dev.home_ignores_stop = true;
-  dev.entered = false;
-  dev.release = false;
-  ASSERT_TRUE(svc.Handle(reset)["ok"].get<bool>());
-  ASSERT_TRUE(WaitFor([&] { return dev.entered.load(); }));
-  EXPECT_TRUE(svc.Handle(stop)["ok"].get<bool>());
-  dev.release = true;
-  EXPECT_TRUE(WaitFor(faulted_by_stop)) << svc.StatusJson().dump();
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  EXPECT_EQ(svc.state(), ServiceState::kFault);
+  reset_then_stop(dev.gate_home);
   EXPECT_EQ(runs, 0) << "a start-up job ran after the operator's stop";
   // A reset with no stop after it works, and queues the start-up job.
-  dev.gate_home = false;
   ASSERT_TRUE(svc.Handle(reset)["ok"].get<bool>());
   EXPECT_TRUE(WaitFor([&] { return runs == 1; }));
   EXPECT_EQ(dev.homes, 2);
