@@ -26,7 +26,8 @@ namespace {
 std::string PartialPath(const std::string& file) {
   const std::filesystem::path p(file);
   std::filesystem::path candidate = p.parent_path() / (p.stem().string() + ".partial.csv");
-  for (int k = 2; std::filesystem::exists(candidate); ++k) {
+  std::error_code ec;  // a folder that cannot be read: the write below fails and says so
+  for (int k = 2; std::filesystem::exists(candidate, ec); ++k) {
     candidate = p.parent_path() / fmt::format("{}.partial-{}.csv", p.stem().string(), k);
   }
   return candidate.string();
@@ -65,7 +66,8 @@ Result<RobotAcquisition> AcquireRobotKeepingPartial(ArmDevices& dev,
         return WriteRobotObservations(path, r);
       });
   // What a calibration from that file needs to be told (both sets are needed at all).
-  if (!r.empty() && r.back().set == 2) {
+  const bool saved = note.find("could not be saved") == std::string::npos;
+  if (saved && !r.empty() && r.front().set == 1 && r.back().set == 2) {
     const bool translate = ao.method == calib::TranslationMethod::kTranslate;
     const double d = translate ? partial.rail_readings_mm[1] - partial.rail_readings_mm[0] : ao.distance_mm;
     note += fmt::format(
@@ -542,7 +544,7 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
                             o.out,
                             [&](const std::string& path) { return WriteRailObservations(path, readings); })
               : fmt::format("; the {} readings of the complete acquisition are in {}", readings.size(), o.observations);
-      return Status(held.status().code(), "rail: held-out readings: " + held.status().message() + where);
+      return Status(held.status().code(), held.status().message() + " (the held-out readings)" + where);
     }
     // One held-out point: the readings of the first chosen point.
     for (std::size_t i = 0; i < held->readings.size(); i += 2) held_out.push_back(held->readings[i]);

@@ -326,6 +326,38 @@ TEST_F(CalibrateCommandTest, AStoppedRailAcquisitionSavesTheReadingsItTook) {
   ASSERT_TRUE(readings.ok()) << readings.status().ToString();
   EXPECT_GE(readings->size(), 20u);
   EXPECT_LE(readings->size(), 25u);
+  // Stopped in the held-out acquisition, after the 60 readings: those are complete, in the
+  // observations file, and the error says so.
+  polls = 0;
+  o.observations = P("rail_obs2.csv");
+  o.cancelled = [&] { return ++polls > 65; };
+  const Status held = RunCalibrateRtu(o);
+  ASSERT_EQ(held.code(), StatusCode::kCancelled) << held.ToString();
+  EXPECT_NE(held.message().find("(the held-out readings)"), std::string::npos) << held.ToString();
+  EXPECT_NE(held.message().find("of the complete acquisition are in " + P("rail_obs2.csv")), std::string::npos)
+      << held.ToString();
+  auto complete = ReadRailObservations(P("rail_obs2.csv"));
+  ASSERT_TRUE(complete.ok()) << complete.status().ToString();
+  EXPECT_GE(complete->size(), 55u);
+  EXPECT_FALSE(std::filesystem::exists(P("rail_obs2.partial.csv")));
+}
+
+// An arm the rail calibration calibrates first in the twin (no --robotK file), stopped part-way: its
+// readings go beside the rail's result, not into the working directory.
+TEST_F(CalibrateCommandTest, AStoppedArmAcquisitionForTheRailSavesBesideTheResult) {
+  RtuCommandOptions o;
+  o.sim = true;
+  o.readings = 60;
+  o.out = P("rail.yaml");
+  int polls = 0;
+  o.cancelled = [&polls] { return ++polls > 30; };
+  const Status s = RunCalibrateRtu(o);
+  ASSERT_EQ(s.code(), StatusCode::kCancelled) << s.ToString();
+  EXPECT_NE(s.message().find("saved in " + P("robot1.partial.csv")), std::string::npos) << s.ToString();
+  auto readings = ReadRobotObservations(P("robot1.partial.csv"));
+  ASSERT_TRUE(readings.ok()) << readings.status().ToString();
+  EXPECT_GE(readings->size(), 25u);
+  EXPECT_LE(readings->size(), 30u);
 }
 
 TEST_F(CalibrateCommandTest, SimRunWritesFilesThatTheFileRunReproduces) {

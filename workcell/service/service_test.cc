@@ -310,7 +310,7 @@ TEST(ServiceTest, AStopAfterAResetEndsThatReset) {
   stop.command = ControlCommand::kStop;
   // A reset whose gated step (`gate`) gets the operator's stop before it goes on: the cell must stay in
   // fault, for that stop.
-  auto reset_then_stop = [&](std::atomic<bool>& gate) {
+  auto reset_then_stop = [&](std::atomic<bool>& gate, const std::string& why) {
     dev.gate_connect = false;
     dev.gate_home = false;
     dev.entered = false;
@@ -321,19 +321,19 @@ TEST(ServiceTest, AStopAfterAResetEndsThatReset) {
     EXPECT_TRUE(svc.Handle(stop)["ok"].get<bool>());
     dev.release = true;
     EXPECT_TRUE(WaitFor([&] {
-      return svc.state() == ServiceState::kFault &&
-             svc.StatusJson().dump().find("stopped by the operator") != std::string::npos;
+      return svc.state() == ServiceState::kFault && svc.StatusJson().dump().find(why) != std::string::npos;
     })) << svc.StatusJson().dump();
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     EXPECT_EQ(svc.state(), ServiceState::kFault);
+    EXPECT_TRUE(svc.StatusJson()["queue"].empty()) << "a job was queued after the operator's stop";
     gate = false;
   };
   // The stop while the reset's Connect has not yet cleared the devices' flag.
-  reset_then_stop(dev.gate_connect);
+  reset_then_stop(dev.gate_connect, "connecting: stopped by the operator");
   EXPECT_EQ(dev.homes, 0) << "the cell homed after the operator's stop";
   // The stop while homing, on devices that go on after a stop.
   dev.home_ignores_stop = true;
-  reset_then_stop(dev.gate_home);
+  reset_then_stop(dev.gate_home, "starting up: stopped by the operator");
   EXPECT_EQ(runs, 0) << "a start-up job ran after the operator's stop";
   // A reset with no stop after it works, and queues the start-up job.
   ASSERT_TRUE(svc.Handle(reset)["ok"].get<bool>());
