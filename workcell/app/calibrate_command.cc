@@ -33,18 +33,24 @@ std::string PartialPath(const std::string& file) {
   return candidate.string();
 }
 
-// `what`'s readings (n of them) written by `write` to PartialPath(beside): a note for the failure's
-// message saying where they are, or why they could not be saved; empty for none.
-std::string SavePartial(const char* what,
+// What SavePartial did: `note` is for the failure's message (where the readings are, or why they could
+// not be saved; empty when there were none), `saved` whether a file now holds them.
+struct PartialSave {
+  std::string note;
+  bool saved = false;
+};
+
+// `what`'s readings (n of them) written by `write` to PartialPath(beside).
+PartialSave SavePartial(const char* what,
                         std::size_t n,
                         const std::string& beside,
                         const std::function<Status(const std::string&)>& write) {
-  if (n == 0) return "";
+  if (n == 0) return {};
   const std::string path = PartialPath(beside);
   const Status saved = write(path);
-  if (!saved.ok()) return fmt::format("; the {} {} measured could not be saved: {}", n, what, saved.message());
+  if (!saved.ok()) return {fmt::format("; the {} {} measured could not be saved: {}", n, what, saved.message()), false};
   spdlog::warn("the {} {} measured before the acquisition ended are saved in {}", n, what, path);
-  return fmt::format("; the {} {} measured are saved in {}", n, what, path);
+  return {fmt::format("; the {} {} measured are saved in {}", n, what, path), true};
 }
 
 // AcquireRobotData; when it ends early, the readings it measured are saved beside the observations file
@@ -61,13 +67,13 @@ Result<RobotAcquisition> AcquireRobotKeepingPartial(ArmDevices& dev,
   auto acq = AcquireRobotData(dev, arm, setup, calib::ArmModel{}, ao);
   if (acq.ok()) return acq;
   const std::vector<calib::AimReading>& r = partial.data.readings;
-  std::string note =
+  const PartialSave main =
       SavePartial("readings", r.size(), observations.empty() ? out : observations, [&](const std::string& path) {
         return WriteRobotObservations(path, r);
       });
+  std::string note = main.note;
   // What a calibration from that file needs to be told (both sets are needed at all).
-  const bool saved = note.find("could not be saved") == std::string::npos;
-  if (saved && !r.empty() && r.front().set == 1 && r.back().set == 2) {
+  if (main.saved && r.front().set == 1 && r.back().set == 2) {
     const bool translate = ao.method == calib::TranslationMethod::kTranslate;
     const double d = translate ? partial.rail_readings_mm[1] - partial.rail_readings_mm[0] : ao.distance_mm;
     note += fmt::format(
@@ -77,8 +83,8 @@ Result<RobotAcquisition> AcquireRobotKeepingPartial(ArmDevices& dev,
     std::vector<calib::AimReading> held;
     for (const Joints& q : partial.held_out) held.push_back({1, q, 0});
     note += SavePartial("held-out readings", held.size(), validate, [&](const std::string& path) {
-      return WriteRobotObservations(path, held);
-    });
+              return WriteRobotObservations(path, held);
+            }).note;
   }
   return Status(acq.status().code(), acq.status().message() + note);
 }
@@ -97,10 +103,12 @@ Result<RailAcquisition> AcquireRailKeepingPartial(ArmDevices& d1,
   ao.partial = &partial;
   auto acq = AcquireRailData(d1, d2, setup, arm1, arm2, ao);
   if (acq.ok()) return acq;
-  const std::string note = SavePartial(
-      "readings", partial.readings.size(), observations.empty() ? out : observations, [&](const std::string& path) {
-        return WriteRailObservations(path, partial.readings);
-      });
+  const std::string note =
+      SavePartial("readings",
+                  partial.readings.size(),
+                  observations.empty() ? out : observations,
+                  [&](const std::string& path) { return WriteRailObservations(path, partial.readings); })
+          .note;
   return Status(acq.status().code(), acq.status().message() + note);
 }
 
@@ -543,6 +551,7 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
                             readings.size(),
                             o.out,
                             [&](const std::string& path) { return WriteRailObservations(path, readings); })
+                    .note
               : fmt::format("; the {} readings of the complete acquisition are in {}", readings.size(), o.observations);
       return Status(held.status().code(), held.status().message() + " (the held-out readings)" + where);
     }
