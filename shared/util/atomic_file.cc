@@ -50,10 +50,39 @@ Status WriteAll(int fd, std::string_view contents, const std::string& path) {
   return Status::Ok();
 }
 
+// A target that exists and is not a regular file (a character device, a FIFO): written in place.
+Status WriteInPlace(const std::string& path, std::string_view contents) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC | O_NOCTTY);
+  if (fd < 0) return IoError(path + ": cannot open for writing: " + ErrnoText());
+  Status st = WriteAll(fd, contents, path);
+  if (::close(fd) != 0 && st.ok()) st = IoError(path + ": close failed: " + ErrnoText());
+  return st;
+}
+
+// The file a symbolic link at `path` ends at (links of links followed; a relative link is taken from
+// the link's folder); `path` itself when it is not a link. ELOOP-like chains stop after 40 links.
+std::string FollowLinks(const std::string& path) {
+  namespace fs = std::filesystem;
+  fs::path p(path);
+  std::error_code ec;
+  for (int i = 0; i < 40 && fs::is_symlink(p, ec); ++i) {
+    const fs::path to = fs::read_symlink(p, ec);
+    if (ec) break;
+    p = to.is_absolute() ? to : p.parent_path() / to;
+  }
+  return p.string();
+}
+
 }  // namespace
 
-Status WriteFileAtomically(const std::string& path, std::string_view contents) {
+Status WriteFileAtomically(const std::string& requested, std::string_view contents) {
   namespace fs = std::filesystem;
+  const std::string path = FollowLinks(requested);
+  struct stat existing {};
+  if (::stat(path.c_str(), &existing) == 0 && !S_ISREG(existing.st_mode)) {
+    if (S_ISDIR(existing.st_mode)) return InvalidArgument(requested + ": is a folder, expected a file name");
+    return WriteInPlace(path, contents);
+  }
   const fs::path target(path);
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   std::error_code ec;
@@ -117,6 +146,41 @@ Status CheckOutputFolder(const std::string& path, const std::string& what) {
   if (!fs::is_directory(at, ec)) return InvalidArgument(what + " " + path + ": " + at.string() + " is not a folder");
   if (::access(at.c_str(), W_OK | X_OK) != 0) {
     return IoError(what + " " + path + ": cannot write in " + at.string() + ": " + ErrnoText());
+  }
+  return Status::Ok();
+}
+
+bool SameFile(const std::string& a, const std::string& b) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::exists(a, ec) && fs::exists(b, ec)) {
+    const bool same = fs::equivalent(a, b, ec);
+    if (!ec) return same;
+  }
+  const fs::path ca = fs::weakly_canonical(fs::absolute(a, ec), ec);
+  if (ec) return fs::absolute(a, ec).lexically_normal() == fs::absolute(b, ec).lexically_normal();
+  const fs::path cb = fs::weakly_canonical(fs::absolute(b, ec), ec);
+  if (ec) return fs::absolute(a, ec).lexically_normal() == fs::absolute(b, ec).lexically_normal();
+  return ca == cb;
+}
+
+Status CheckDistinctFiles(const std::vector<NamedFile>& inputs,
+                          const std::vector<NamedFile>& outputs,
+                          const std::string& command) {
+  for (std::size_t i = 0; i < outputs.size(); ++i) {
+    const NamedFile& out = outputs[i];
+    if (out.path.empty()) continue;
+    for (const NamedFile& in : inputs) {
+      if (in.path.empty() || !SameFile(out.path, in.path)) continue;
+      return InvalidArgument(command + ": " + out.option + " " + out.path + " is the same file as the input " +
+                             in.option + " " + in.path + ": writing it would destroy the input (name another file)");
+    }
+    for (std::size_t j = i + 1; j < outputs.size(); ++j) {
+      const NamedFile& other = outputs[j];
+      if (other.path.empty() || !SameFile(out.path, other.path)) continue;
+      return InvalidArgument(command + ": " + out.option + " " + out.path + " and " + other.option + " " + other.path +
+                             " are the same file: one would replace the other (name two files)");
+    }
   }
   return Status::Ok();
 }

@@ -1,9 +1,13 @@
 // Results and calibration files are written atomically: a temporary file in the same folder, fsync,
 // rename over the target, fsync the folder. A reader sees the old file or the new one, never half.
+// A symbolic link is followed (the file it names is replaced, the link stays), and a target that is
+// not a regular file (/dev/null, a FIFO, a terminal) is written in place: renaming over it would
+// replace the device node or FIFO with a regular file.
 #pragma once
 
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "shared/util/status.h"
 
@@ -18,6 +22,23 @@ Status CheckOutputFile(const std::string& path, const std::string& what);
 // The same for a folder of outputs, without making it: it is a writable folder, or the nearest of its
 // parents that exists is one (so that it can be made).
 Status CheckOutputFolder(const std::string& path, const std::string& what);
+
+// A file a command reads or writes, with the option that names it (for messages).
+struct NamedFile {
+  std::string option;  // e.g. "--out"
+  std::string path;    // empty: not given
+};
+
+// Whether two paths name one file: the same inode when both exist, else the same absolute path once
+// the symbolic links of its existing part are resolved.
+bool SameFile(const std::string& a, const std::string& b);
+
+// Refuses (InvalidArgument, `command` starting the message) an output that is the same file as an
+// input (writing it would destroy the input before or while it is read) or as another output (one
+// would replace the other). Empty paths are skipped. Checked before any work, like CheckOutputFile.
+Status CheckDistinctFiles(const std::vector<NamedFile>& inputs,
+                          const std::vector<NamedFile>& outputs,
+                          const std::string& command);
 
 // Reads a whole file; NotFound if it does not exist, IoError if it cannot be read.
 Result<std::string> ReadFile(const std::string& path);

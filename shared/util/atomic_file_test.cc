@@ -73,6 +73,64 @@ TEST_F(AtomicFileTest, MissingFolderIsAnErrorNamingThePath) {
   EXPECT_NE(st.message().find("no_such_dir"), std::string::npos);
 }
 
+// A link is followed: the file it names gets the contents and the link stays a link (renaming over it
+// replaced the link with a regular file). A relative link is taken from the link's own folder.
+TEST_F(AtomicFileTest, ASymbolicLinkIsFollowed) {
+  fs::create_directories(dir_ / "real");
+  const fs::path target = dir_ / "real" / "calib.yaml";
+  ASSERT_TRUE(WriteFileAtomically(target.string(), "old\n").ok());
+  const fs::path link = dir_ / "current.yaml";
+  fs::create_symlink(fs::path("real") / "calib.yaml", link);
+  const Status st = WriteFileAtomically(link.string(), "new\n");
+  ASSERT_TRUE(st.ok()) << st.ToString();
+  EXPECT_TRUE(fs::is_symlink(link));
+  EXPECT_EQ(ReadFile(target.string()).value(), "new\n");
+}
+
+// A device node is written in place: /dev/null stays a character device (as root, renaming over it
+// replaced the system's /dev/null with a regular file), and /dev/full's "no space" is the error.
+TEST_F(AtomicFileTest, ADeviceIsWrittenInPlace) {
+  const fs::path null_link = dir_ / "null";
+  fs::create_symlink("/dev/null", null_link);
+  const Status st = WriteFileAtomically(null_link.string(), "x\n");
+  ASSERT_TRUE(st.ok()) << st.ToString();
+  ASSERT_TRUE(fs::is_character_file("/dev/null"));
+  // (Only then /dev/full: code that renamed over it would, as root, replace the system's.)
+  ASSERT_TRUE(fs::is_symlink(null_link));
+  if (fs::is_character_file("/dev/full")) {
+    const Status full = WriteFileAtomically("/dev/full", "x\n");
+    EXPECT_EQ(full.code(), StatusCode::kIoError) << full.ToString();
+    EXPECT_NE(full.message().find("/dev/full"), std::string::npos) << full.ToString();
+    EXPECT_TRUE(fs::is_character_file("/dev/full"));
+  }
+  EXPECT_EQ(WriteFileAtomically(dir_.string(), "x").code(), StatusCode::kInvalidArgument) << "a folder";
+}
+
+TEST_F(AtomicFileTest, AnOutputMayNotBeAnInputOrAnotherOutput) {
+  const std::string obs = (dir_ / "obs.csv").string();
+  ASSERT_TRUE(WriteFileAtomically(obs, "readings\n").ok());
+  const std::string out = (dir_ / "out.yaml").string();
+  EXPECT_TRUE(CheckDistinctFiles({{"--observations", obs}}, {{"--out", out}, {"--report", ""}}, "calibrate").ok());
+  // The input named another way: relative to the working folder, and through a link.
+  const fs::path cwd = fs::current_path();
+  fs::current_path(dir_);
+  const Status same = CheckDistinctFiles({{"--observations", obs}}, {{"--out", "./obs.csv"}}, "calibrate");
+  fs::current_path(cwd);
+  EXPECT_EQ(same.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(same.message().find("calibrate: --out ./obs.csv is the same file as the input --observations"),
+            std::string::npos)
+      << same.ToString();
+  fs::create_symlink(obs, dir_ / "link.csv");
+  EXPECT_FALSE(CheckDistinctFiles({{"--observations", obs}}, {{"--out", (dir_ / "link.csv").string()}}, "c").ok());
+  // Two outputs, neither written yet.
+  const Status twice =
+      CheckDistinctFiles({}, {{"--out", out}, {"--report", (dir_ / "sub" / ".." / "out.yaml").string()}}, "c");
+  EXPECT_EQ(twice.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(twice.message().find("are the same file"), std::string::npos) << twice.ToString();
+  EXPECT_FALSE(SameFile(out, obs));
+  EXPECT_TRUE(SameFile(out, out));
+}
+
 TEST_F(AtomicFileTest, ReadMissingFileIsNotFound) {
   const auto r = ReadFile((dir_ / "absent.yaml").string());
   ASSERT_FALSE(r.ok());
