@@ -149,7 +149,27 @@ void EmitParamSet(YAML::Emitter& out, const ParamSet& set) {
   }
 }
 
+Status CheckParamsWritable(const ParamSet& set, const std::string& where) {
+  std::string values, stds;
+  for (std::size_t i = 0; i < set.size(); ++i) {
+    const std::string key = set.spec(i).Key();
+    if (!std::isfinite(set.value(i)))
+      values += (values.empty() ? "" : ", ") + key;
+    else if (std::isinf(set.stddev(i)))
+      stds += (stds.empty() ? "" : ", ") + key;
+  }
+  if (values.empty() && stds.empty()) return Status::Ok();
+  std::string what;
+  if (!values.empty()) what = "the values of " + values + " are not finite numbers";
+  if (!stds.empty()) {
+    what += (what.empty() ? "" : "; ") + std::string("the data do not determine ") + stds +
+            " (their standard deviation is infinite)";
+  }
+  return FailedPrecondition(where + ": not written: " + what);
+}
+
 Status SaveParamFile(const std::string& path, const ParamSet& set, const std::string& model) {
+  IDI_RETURN_IF_ERROR(CheckParamsWritable(set, path));
   YAML::Emitter out;
   out.SetDoublePrecision(12);
   out << YAML::BeginMap;

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include "shared/kinematics/rx130.h"
 #include "shared/util/atomic_file.h"
@@ -56,6 +57,29 @@ TEST_F(ParamFileTest, RoundTripKeepsValuesAndStd) {
   EXPECT_NEAR(r->file_stddev(kA3), 0.002, 1e-15);
   EXPECT_NEAR(r->file_value(kAlpha4), -90.0, 1e-12);
   EXPECT_TRUE(std::isnan(r->stddev(kA2)));
+}
+
+// What the loader would refuse is not written: a value that is not finite, or a parameter whose std
+// is infinite (the data did not determine it). An unknown std (NaN) is left out, as before.
+TEST_F(ParamFileTest, AnUndeterminedParameterIsNotWritten) {
+  ParamSet robot = Rx130Nominal();
+  robot.set_stddev(kA3, std::numeric_limits<double>::infinity());
+  robot.set_stddev(kD4, std::numeric_limits<double>::infinity());
+  const std::string path = (dir_ / "robot.yaml").string();
+  Status st = SaveParamFile(path, robot, "rx130");
+  EXPECT_EQ(st.code(), StatusCode::kFailedPrecondition);
+  EXPECT_NE(st.message().find("robot.yaml: not written: the data do not determine a3_mm, d4_mm"), std::string::npos)
+      << st.ToString();
+  EXPECT_FALSE(fs::exists(path));
+  robot.set_stddev(kA3, 0.1);
+  robot.set_stddev(kD4, 0.1);
+  robot.set_value(kA2, std::numeric_limits<double>::quiet_NaN());
+  st = SaveParamFile(path, robot, "rx130");
+  EXPECT_NE(st.message().find("the values of a2_mm are not finite"), std::string::npos) << st.ToString();
+  robot.set_value(kA2, 0.0);
+  robot.set_stddev(kA2, std::numeric_limits<double>::quiet_NaN());
+  ASSERT_TRUE(SaveParamFile(path, robot, "rx130").ok());
+  EXPECT_TRUE(LoadParamFile(path, Rx130ParamSpecs()).ok());
 }
 
 TEST_F(ParamFileTest, MissingKeyIsRejectedNamingFileAndKey) {

@@ -297,6 +297,14 @@ Status RunCalibrateRobot(const RobotCommandOptions& o) {
                                     {o.sim ? o.validate : "", "--validate"}},
                                    o.plots,
                                    "calibrate robot"));
+  // With --sim the observations and validation files are outputs too.
+  IDI_RETURN_IF_ERROR(
+      CheckDistinctFiles({{"--observations", o.sim ? "" : o.observations}, {"--validate", o.sim ? "" : o.validate}},
+                         {{"--out", o.out},
+                          {"--report", o.report},
+                          {"--observations", o.sim ? o.observations : ""},
+                          {"--validate", o.sim ? o.validate : ""}},
+                         "calibrate robot"));
   IDI_RETURN_IF_ERROR(CheckSigma(o.spot_sigma_mm, "calibrate robot: --spot-sigma-mm"));
   IDI_RETURN_IF_ERROR(CheckSigma(o.distance_sigma_mm, "calibrate robot: --distance-sigma-mm"));
   // 0 (not given): the twin's 1000 mm, or an error below for observations.
@@ -509,6 +517,21 @@ Status RunCalibrateRtu(const RtuCommandOptions& o) {
       CheckOutputs({{o.out, "--out"}, {o.report, "--report"}, {o.sim ? o.observations : "", "--observations"}},
                    o.plots,
                    "calibrate rtu"));
+  {
+    // An arm's file is read, or (--sim, when it does not exist yet) written by calibrating the arm first.
+    std::vector<NamedFile> inputs = {{"--observations", o.sim ? "" : o.observations}};
+    std::vector<NamedFile> outputs = {
+        {"--out", o.out}, {"--report", o.report}, {"--observations", o.sim ? o.observations : ""}};
+    for (const NamedFile& arm : {NamedFile{"--robot1", o.robot1}, NamedFile{"--robot2", o.robot2}}) {
+      std::error_code ec;
+      (o.sim && !arm.path.empty() && !std::filesystem::exists(arm.path, ec) ? outputs : inputs).push_back(arm);
+    }
+    IDI_RETURN_IF_ERROR(CheckDistinctFiles(inputs, outputs, "calibrate rtu"));
+    if (!o.robot1.empty() && !o.robot2.empty() && SameFile(o.robot1, o.robot2)) {
+      return InvalidArgument("calibrate rtu: --robot1 " + o.robot1 + " and --robot2 " + o.robot2 +
+                             " are the same file: each arm has its own calibration");
+    }
+  }
   IDI_RETURN_IF_ERROR(CheckSigma(o.spot_sigma_mm, "calibrate rtu: --spot-sigma-mm"));
   IDI_RETURN_IF_ERROR(CheckSigma(o.rail_sigma_mm, "calibrate rtu: --rail-sigma-mm"));
   std::unique_ptr<sim::WorkcellTwin> twin;
@@ -655,8 +678,16 @@ void AddCalibrateCommand(CliApp& cli) {
   robot->add_flag("--sim", ro->sim, "run the whole procedure, acquisition included, in the digital twin");
   robot->add_option("--seed", ro->seed, "digital twin seed")->capture_default_str();
   robot->add_option("--arm", ro->arm, "which robot (--sim)")->check(CLI::Range(1, 2))->capture_default_str();
-  robot->add_option("--readings", ro->readings, "readings to acquire (--sim), both sets")
-      ->check(CLI::Range(20, 100000))
+  // The solve needs 5 readings per unknown (§4.3.2), and the two sets are equal: fewer would be
+  // refused only after the acquisition.
+  const int min_readings =
+      2 * ((calib::RobotCalibrationOptions{}.min_readings_per_unknown * calib::kRobotCalibrationUnknowns + 1) / 2);
+  robot
+      ->add_option(
+          "--readings",
+          ro->readings,
+          fmt::format("readings to acquire (--sim), both sets; at least {} (5 per unknown, §4.3.2)", min_readings))
+      ->check(CLI::Range(min_readings, 100000))
       ->capture_default_str();
 
   auto to = std::make_shared<RtuCommandOptions>();

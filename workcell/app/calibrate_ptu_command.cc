@@ -145,6 +145,15 @@ Status RunCalibratePtu(const CalibratePtuOptions& o) {
     IDI_RETURN_IF_ERROR(CheckOutputFile(o.validate, "calibrate ptu: --validate"));
   }
   IDI_RETURN_IF_ERROR(CheckOutputFolder(o.plots, "calibrate ptu: --plots"));
+  // With --sim the observations and validation files are outputs too. (--out may be the --start file:
+  // refining a result in place is asked for, and the start is read before anything is written.)
+  IDI_RETURN_IF_ERROR(
+      CheckDistinctFiles({{"--observations", o.sim ? "" : o.observations}, {"--validate", o.sim ? "" : o.validate}},
+                         {{"--out", o.out},
+                          {"--report", o.report},
+                          {"--observations", o.sim ? o.observations : ""},
+                          {"--validate", o.sim ? o.validate : ""}},
+                         "calibrate ptu"));
   return o.sim ? RunInTwin(o) : RunFromFiles(o);
 }
 

@@ -45,11 +45,20 @@ Result<std::vector<double>> Numbers(const YAML::Node& n, std::size_t count, cons
   return out;
 }
 
-Result<std::vector<StructureView>> LoadViews(const std::string& path) try {
+// The views of `path`, and (when not null) the image files they were read from.
+Result<std::vector<StructureView>> LoadViews(const std::string& path, std::vector<std::string>* image_files) try {
   IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(path));
   const YAML::Node root = YAML::Load(text);
   if (!root.IsMap() || !root["views"] || !root["views"].IsSequence()) {
     return InvalidArgument(path + ": expected a map with a list 'views'");
+  }
+  for (const auto& kv : root) {
+    if (kv.first.as<std::string>() != "views") {
+      return InvalidArgument(fmt::format("{}:{}: unknown key '{}' (expected only 'views')",
+                                         path,
+                                         kv.first.Mark().line + 1,
+                                         kv.first.as<std::string>()));
+    }
   }
   const fs::path base = fs::path(path).parent_path();
   std::vector<StructureView> views;
@@ -67,8 +76,13 @@ Result<std::vector<StructureView>> LoadViews(const std::string& path) try {
     StructureView sv;
     const fs::path image_path = base / v["image"].as<std::string>();
     sv.name = image_path.filename().string();
-    sv.image = cv::imread(image_path.string(), cv::IMREAD_GRAYSCALE);
+    try {
+      sv.image = cv::imread(image_path.string(), cv::IMREAD_GRAYSCALE);
+    } catch (const cv::Exception& e) {  // e.g. a header claiming more pixels than OpenCV will decode
+      return InvalidArgument(where + ": cannot read image " + image_path.string() + ": " + e.what());
+    }
     if (sv.image.empty()) return InvalidArgument(where + ": cannot read image " + image_path.string());
+    if (image_files) image_files->push_back(image_path.string());
     IDI_ASSIGN_OR_RETURN(const auto k, Numbers(v["K"], 9, where + ".K"));
     if (k[1] != 0 || k[3] != 0 || k[6] != 0 || k[7] != 0 || k[8] != 1 || !(k[0] > 0) || !(k[4] > 0)) {
       return InvalidArgument(where + ".K: expected [fx, 0, cx, 0, fy, cy, 0, 0, 1] with fx, fy > 0");
@@ -93,8 +107,33 @@ Result<std::vector<StructureView>> LoadViews(const std::string& path) try {
   return YamlError(path, e);
 }
 
+// Each view's overlay file: <stem>_model.png, views of the same file name (left/0001.png,
+// right/0001.png) numbered <stem>_2_model.png and on.
+std::vector<std::string> OverlayFiles(const std::vector<StructureView>& views, const std::string& dir) {
+  std::map<std::string, int> names;
+  std::vector<std::string> files;
+  for (const StructureView& v : views) {
+    const std::string stem = fs::path(v.name).stem().string();
+    const int n = ++names[stem];
+    files.push_back((fs::path(dir) / ((n == 1 ? stem : fmt::format("{}_{}", stem, n)) + "_model.png")).string());
+  }
+  return files;
+}
+
 Status RunReconstruct(const ReconstructOptions& o) {
-  IDI_ASSIGN_OR_RETURN(const std::vector<StructureView> views, LoadViews(o.views_file));
+  std::vector<std::string> image_files;
+  IDI_ASSIGN_OR_RETURN(const std::vector<StructureView> views, LoadViews(o.views_file, &image_files));
+  const std::vector<std::string> overlays =
+      o.overlay_dir.empty() ? std::vector<std::string>() : OverlayFiles(views, o.overlay_dir);
+  {
+    // Before the work, no output may replace an input (the views file, an image) or another output.
+    std::vector<NamedFile> inputs = {{"--views", o.views_file}};
+    for (const std::string& f : image_files) inputs.push_back({"image", f});
+    std::vector<NamedFile> outputs = {{"--ply", o.ply}};
+    for (const std::string& f : overlays) outputs.push_back({"--overlay", f});
+    IDI_RETURN_IF_ERROR(CheckDistinctFiles(inputs, outputs, "reconstruct"));
+    IDI_RETURN_IF_ERROR(CheckOutputFile(o.ply, "reconstruct: --ply"));
+  }
   if (!o.overlay_dir.empty()) {
     // Before the work: a folder that cannot be made is known now, not after the reconstruction.
     std::error_code ec;
@@ -109,15 +148,8 @@ Status RunReconstruct(const ReconstructOptions& o) {
                r.adjustment.initial_rms_px, r.adjustment.final_rms_px);
   const nlohmann::json out = StructureModelJson(r.model);
   if (!o.ply.empty()) IDI_RETURN_IF_ERROR(WriteFileAtomically(o.ply, ModelToPly(r.model)));
-  if (!o.overlay_dir.empty()) {
-    // Views of the same file name (left/0001.png, right/0001.png) get their own overlays.
-    std::map<std::string, int> names;
-    for (std::size_t v = 0; v < views.size(); ++v) {
-      const std::string stem = fs::path(views[v].name).stem().string();
-      const int n = ++names[stem];
-      const fs::path file = fs::path(o.overlay_dir) / ((n == 1 ? stem : fmt::format("{}_{}", stem, n)) + "_model.png");
-      IDI_RETURN_IF_ERROR(plot::WritePngFile(file.string(), DrawModelOverlay(views[v], r.model, &r.features[v])));
-    }
+  for (std::size_t v = 0; v < overlays.size(); ++v) {
+    IDI_RETURN_IF_ERROR(plot::WritePngFile(overlays[v], DrawModelOverlay(views[v], r.model, &r.features[v])));
   }
   if (o.json) {
     std::cout << out.dump() << "\n";

@@ -1,5 +1,6 @@
 #include "workcell/procedures/calibration_files.h"
 
+#include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
@@ -160,6 +161,13 @@ Status WriteRobotCalibration(const std::string& path,
                              const calib::RobotCalibrationResult& r,
                              const calib::RobotCalibrationData& data,
                              std::optional<unsigned> sim_seed) {
+  if (const Status st = CheckParamsWritable(r.params, path); !st.ok()) {
+    return Status(st.code(),
+                  st.message() + fmt::format(" (Jacobian condition number {:.3g}; check the readings and the rail "
+                                             "distance D, {} mm)",
+                                             r.identifiability.condition_number,
+                                             data.distance_mm));
+  }
   YAML::Emitter e;
   e.SetDoublePrecision(12);
   e << YAML::BeginMap;
@@ -260,6 +268,11 @@ Result<calib::ArmModel> LoadRobotCalibration(const std::string& path) {
 }
 
 Status WriteRailCalibration(const std::string& path, const calib::RailCalibrationResult& r) {
+  if (const Status st = CheckParamsWritable(r.psi, path); !st.ok()) {
+    return Status(st.code(),
+                  st.message() + fmt::format(" (Jacobian condition number {:.3g}; check the readings)",
+                                             r.identifiability.condition_number));
+  }
   YAML::Emitter e;
   e.SetDoublePrecision(12);
   e << YAML::BeginMap;

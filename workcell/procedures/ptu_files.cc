@@ -51,6 +51,11 @@ Status WritePtuObservations(const std::string& path, const std::vector<calib::Pt
 
 Status WritePtuCalibration(const std::string& path, const calib::PtuCalibrationResult& r,
                            const calib::PtuValidation* validation) {
+  for (const calib::PtuCameraCalibration& c : r.cameras) {
+    const std::string where = path + " (" + BiclopsSideName(c.side) + " camera)";
+    IDI_RETURN_IF_ERROR(CheckParamsWritable(c.model.ptu, where));
+    IDI_RETURN_IF_ERROR(CheckParamsWritable(c.model.intrinsics, where));
+  }
   YAML::Emitter e;
   e.SetDoublePrecision(12);
   e << YAML::BeginMap;
