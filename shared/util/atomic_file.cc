@@ -125,10 +125,16 @@ Status WriteFileAtomically(const std::string& requested, std::string_view conten
 Status CheckOutputFile(const std::string& path, const std::string& what) {
   namespace fs = std::filesystem;
   if (path.empty()) return Status::Ok();
-  const fs::path target(path);
+  // As WriteFileAtomically will: through a link to its file, and a device or FIFO written in place.
+  const fs::path target(FollowLinks(path));
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   std::error_code ec;
   if (fs::is_directory(target, ec)) return InvalidArgument(what + " " + path + ": is a folder, expected a file name");
+  struct stat existing {};
+  if (::stat(target.c_str(), &existing) == 0 && !S_ISREG(existing.st_mode)) {
+    if (::access(target.c_str(), W_OK) != 0) return IoError(what + " " + path + ": cannot write it: " + ErrnoText());
+    return Status::Ok();
+  }
   if (!fs::is_directory(dir, ec)) return NotFound(what + " " + path + ": folder " + dir.string() + " does not exist");
   if (::access(dir.c_str(), W_OK | X_OK) != 0) {
     return IoError(what + " " + path + ": cannot write in " + dir.string() + ": " + ErrnoText());

@@ -104,6 +104,16 @@ TEST_F(AtomicFileTest, ADeviceIsWrittenInPlace) {
     EXPECT_TRUE(fs::is_character_file("/dev/full"));
   }
   EXPECT_EQ(WriteFileAtomically(dir_.string(), "x").code(), StatusCode::kInvalidArgument) << "a folder";
+  // The check before a run agrees: a device is checked itself, not the folder it is in (a user cannot
+  // write in /dev, but can write /dev/null), and a link at its file's folder.
+  EXPECT_TRUE(CheckOutputFile("/dev/null", "--report").ok());
+  EXPECT_TRUE(CheckOutputFile(null_link.string(), "--report").ok());
+  fs::create_directories(dir_ / "real");
+  fs::create_symlink(dir_ / "real" / "x.yaml", dir_ / "x.yaml");
+  EXPECT_TRUE(CheckOutputFile((dir_ / "x.yaml").string(), "--out").ok()) << "a dangling link to a file to be made";
+  fs::remove_all(dir_ / "real");
+  EXPECT_EQ(CheckOutputFile((dir_ / "x.yaml").string(), "--out").code(), StatusCode::kNotFound)
+      << "the link's file's folder is gone";
 }
 
 TEST_F(AtomicFileTest, AnOutputMayNotBeAnInputOrAnotherOutput) {
