@@ -1,5 +1,6 @@
 #include "shared/plot/png_file.h"
 
+#include <new>
 #include <opencv2/imgcodecs.hpp>
 #include <string_view>
 #include <vector>
@@ -17,6 +18,20 @@ Status WritePngFile(const std::string& path, const cv::Mat& image) {
     return IoError(path + ": PNG encoding failed: " + e.what());
   }
   return WriteFileAtomically(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+}
+
+Result<cv::Mat> ReadImageFile(const std::string& path, int flags) {
+  cv::Mat image;
+  try {
+    image = cv::imread(path, flags);
+  } catch (const cv::Exception& e) {
+    return InvalidArgument(path + ": cannot read the image: OpenCV refused it (" + e.err +
+                           "; a corrupt header or an image too large)");
+  } catch (const std::bad_alloc&) {
+    return InvalidArgument(path + ": cannot read the image: not enough memory for its pixels");
+  }
+  if (image.empty()) return InvalidArgument(path + ": cannot read the image (missing file or not an image format)");
+  return image;
 }
 
 }  // namespace idi::plot

@@ -90,7 +90,7 @@ TEST(DriveLogTest, NamesWhatIsWrong) {
       {R"({"type":"image","t_ns":5,"camera":"left","seq":1,"file":"a.png"})"
        "\n"
        R"({"type":"image","t_ns":6,"camera":"left","seq":1,"file":"b.png"})",
-       "frame left/1 recorded twice (first at event 1)"},
+       "frame left/1 recorded twice (first on line 1)"},  // ReadRecording refuses it
       {R"({"type":"image","t_ns":5,"camera":"left","seq":1,"file":"a.png"})"
        "\n"
        R"({"type":"delivered","t_ns":6,"camera":"left","seq":1})"

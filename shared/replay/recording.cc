@@ -2,8 +2,11 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <opencv2/imgcodecs.hpp>
+#include <utility>
 
+#include "shared/plot/png_file.h"
 #include "shared/util/atomic_file.h"
 
 namespace idi {
@@ -35,7 +38,8 @@ Result<RecordingWriter> RecordingWriter::Create(const std::string& dir, const Re
   }
   fs::create_directories(fs::path(dir) / "images", ec);
   if (ec) return IoError(dir + ": cannot create: " + ec.message());
-  IDI_RETURN_IF_ERROR(WriteFileAtomically((fs::path(dir) / "recording.json").string(), HeaderJson(header).dump(2) + "\n"));
+  IDI_RETURN_IF_ERROR(
+      WriteFileAtomically((fs::path(dir) / "recording.json").string(), HeaderJson(header).dump(2) + "\n"));
   RecordingWriter w;
   w.dir_ = dir;
   w.header_ = header;
@@ -81,12 +85,26 @@ Status RecordingWriter::Finish(const nlohmann::json& final_meta) {
 
 namespace {
 
+// An integer >= 0 (JSON text reads one as unsigned, code that builds JSON may give it signed).
+bool IsCount(const nlohmann::json& v) {
+  return v.is_number_unsigned() || (v.is_number_integer() && v.get<int64_t>() >= 0);
+}
+
 // The header's fields beyond format and version (throws nlohmann::json::exception on a wrong type).
 Status ReadHeaderFields(const nlohmann::json& h, const std::string& header_path, RecordingHeader* header) {
   header->kind = h.value("kind", "");
   header->created_unix_ns = h.value("created_unix_ns", int64_t{0});
   header->created_clock_ns = h.value("created_clock_ns", int64_t{0});
   header->meta = h.value("meta", nlohmann::json::object());
+  // Free-form, but an object, and `points` (the recorded run's count, which replay compares) a count.
+  if (header->meta.is_null()) header->meta = nlohmann::json::object();
+  if (!header->meta.is_object()) {
+    return ParseError(header_path + ": meta must be an object, got " + header->meta.dump());
+  }
+  if (header->meta.contains("points") && !IsCount(header->meta["points"])) {
+    return ParseError(header_path + ": meta.points must be a count (an integer >= 0), got " +
+                      header->meta["points"].dump());
+  }
   if (h.contains("cameras")) {
     for (const auto& [name, c] : h["cameras"].items()) {
       CameraModel m;
@@ -95,12 +113,65 @@ Status ReadHeaderFields(const nlohmann::json& h, const std::string& header_path,
       }
       m.width = c.value("width", 0);
       m.height = c.value("height", 0);
-      for (int k = 0; k < kCameraParamCount; ++k) m.params[static_cast<std::size_t>(k)] = c["params"][static_cast<std::size_t>(k)].get<double>();
+      for (int k = 0; k < kCameraParamCount; ++k)
+        m.params[static_cast<std::size_t>(k)] = c["params"][static_cast<std::size_t>(k)].get<double>();
       header->cameras[name] = m;
     }
   }
   return Status::Ok();
 }
+
+// What an event may not hold, beyond its type and t_ns being a string and an integer: a t_ns whose
+// wall-clock time (UnixTimeOf) does not fit in int64, and in an image event a seq that is not a frame
+// number, a file outside the recording, or a frame or file seen before. Empty when the event is fine.
+class EventChecker {
+ public:
+  explicit EventChecker(const RecordingHeader& header) : header_(header) {}
+
+  std::string Check(const nlohmann::json& e, int line_no) {
+    const nlohmann::json& t = e["t_ns"];
+    int64_t since_creation = 0, unix_ns = 0;
+    if ((t.is_number_unsigned() && t.get<uint64_t>() > static_cast<uint64_t>(std::numeric_limits<int64_t>::max())) ||
+        __builtin_sub_overflow(t.get<int64_t>(), header_.created_clock_ns, &since_creation) ||
+        __builtin_add_overflow(header_.created_unix_ns, since_creation, &unix_ns)) {
+      return "t_ns " + t.dump() +
+             " is not a time of this recording (created_unix_ns + t_ns - created_clock_ns "
+             "does not fit in 64 bits)";
+    }
+    if (e["type"] != "image") return "";
+    if (!e.contains("file") || !e["file"].is_string()) return "an image event needs its file name (a string)";
+    const std::filesystem::path file(e["file"].get<std::string>());
+    bool inside = !file.empty() && file.is_relative();
+    for (const auto& part : file) inside = inside && part != "..";
+    if (!inside) {
+      return "an image event's file must be a path inside the recording (relative, without ..), got " +
+             e["file"].dump();
+    }
+    const auto [first_of_file, new_file] = files_.emplace(file.lexically_normal().string(), line_no);
+    if (!new_file) {
+      return "image file " + first_of_file->first + " recorded twice (first on line " +
+             std::to_string(first_of_file->second) + ")";
+    }
+    if (!e.contains("seq")) return "";
+    if (!IsCount(e["seq"])) {
+      return "an image event's seq must be a non-negative integer (a frame number), got " + e["seq"].dump();
+    }
+    const std::string camera = !e.contains("camera")     ? "?"
+                               : e["camera"].is_string() ? e["camera"].get<std::string>()
+                                                         : e["camera"].dump();
+    const auto [first_of_frame, new_frame] = frames_.emplace(std::pair{camera, e["seq"].get<uint64_t>()}, line_no);
+    if (!new_frame) {
+      return "frame " + camera + "/" + e["seq"].dump() + " recorded twice (first on line " +
+             std::to_string(first_of_frame->second) + ")";
+    }
+    return "";
+  }
+
+ private:
+  const RecordingHeader& header_;
+  std::map<std::string, int> files_;                        // normalised file -> its line
+  std::map<std::pair<std::string, uint64_t>, int> frames_;  // (camera, seq) -> its line
+};
 
 }  // namespace
 
@@ -126,6 +197,7 @@ Result<Recording> ReadRecording(const std::string& dir) {
   }
   const std::string events_path = (fs::path(dir) / "events.jsonl").string();
   IDI_ASSIGN_OR_RETURN(const std::string events, ReadFile(events_path));
+  EventChecker checker(r.header);
   std::size_t start = 0;
   int line_no = 0;
   while (start < events.size()) {
@@ -147,19 +219,24 @@ Result<Recording> ReadRecording(const std::string& dir) {
       return ParseError(events_path + ":" + std::to_string(line_no) +
                         ": an event's type must be a string and its t_ns an integer (ns)");
     }
+    if (const std::string wrong = checker.Check(e, line_no); !wrong.empty()) {
+      return ParseError(events_path + ":" + std::to_string(line_no) + ": " + wrong);
+    }
     r.events.push_back(std::move(e));
   }
   return r;
 }
 
-Result<cv::Mat> LoadRecordedImage(const Recording& recording, const nlohmann::json& e) {
+Result<std::string> RecordedImagePath(const Recording& recording, const nlohmann::json& e) {
   if (!e.is_object() || !e.contains("type") || e["type"] != "image" || !e.contains("file") || !e["file"].is_string()) {
     return InvalidArgument("not an image event with a file name");
   }
-  const std::string path = (fs::path(recording.dir) / e["file"].get<std::string>()).string();
-  cv::Mat img = cv::imread(path, cv::IMREAD_UNCHANGED);
-  if (img.empty()) return IoError(path + ": cannot read the recorded image");
-  return img;
+  return (fs::path(recording.dir) / e["file"].get<std::string>()).string();
+}
+
+Result<cv::Mat> LoadRecordedImage(const Recording& recording, const nlohmann::json& e) {
+  IDI_ASSIGN_OR_RETURN(const std::string path, RecordedImagePath(recording, e));
+  return plot::ReadImageFile(path, cv::IMREAD_UNCHANGED);
 }
 
 }  // namespace idi

@@ -47,7 +47,8 @@ struct RecordingHeader {
 };
 
 // The wall-clock (Unix) time of an event's t_ns: the events' clock is not the wall clock (on the vehicle
-// it counts from boot), so t_ns is taken relative to the clock's reading at creation.
+// it counts from boot), so t_ns is taken relative to the clock's reading at creation. ReadRecording
+// refuses an event whose time does not fit in int64 (the sum would overflow).
 inline int64_t UnixTimeOf(const RecordingHeader& header, int64_t t_ns) {
   return header.created_unix_ns + (t_ns - header.created_clock_ns);
 }
@@ -84,10 +85,14 @@ struct Recording {
   bool truncated = false;              // the last line was incomplete (a run killed while writing)
 };
 
-// Reads a recording. ParseError naming the file and line for malformed content; a torn last line is
-// tolerated (truncated = true).
+// Reads a recording. ParseError naming the file and line for malformed content (fields of the wrong
+// type; a meta that is not an object; a t_ns whose UnixTimeOf overflows; an image event whose seq is
+// not an integer >= 0, whose file is absolute or leaves the folder (..), or that records a frame (camera,
+// seq) or a file seen before); a torn last line is tolerated (truncated = true).
 Result<Recording> ReadRecording(const std::string& dir);
-// Loads an image event's PNG.
+// The path of an image event's file (inside the recording's folder).
+Result<std::string> RecordedImagePath(const Recording& recording, const nlohmann::json& image_event);
+// Loads an image event's PNG; InvalidArgument naming the file when it cannot be read.
 Result<cv::Mat> LoadRecordedImage(const Recording& recording, const nlohmann::json& image_event);
 
 }  // namespace idi

@@ -77,12 +77,19 @@ TEST(RecordingTest, MalformedInputIsNamed) {
                              R"({"format": "idi-recording", "version": 1, "cameras": {"left": {"width": "640",
                                  "params": [1, 1, 0, 0, 0, 0, 0, 0, 0]}}})",
                              R"({"format": "idi-recording", "version": 1, "cameras": {"left": {"width": 640,
-                                 "params": [1, null, 0, 0, 0, 0, 0, 0, 0]}}})"}) {
+                                 "params": [1, null, 0, 0, 0, 0, 0, 0, 0]}}})",
+                             // meta is an object, and its points (the recorded run's count) a count.
+                             R"({"format": "idi-recording", "version": 1, "kind": "scan", "meta": "x"})",
+                             R"({"format": "idi-recording", "version": 1, "kind": "scan", "meta": {"points": "many"}})",
+                             R"({"format": "idi-recording", "version": 1, "kind": "scan", "meta": {"points": -3}})"}) {
     std::ofstream(dir / "recording.json") << header;
     const auto h = ReadRecording(dir.string());
     ASSERT_FALSE(h.ok()) << header;
     EXPECT_EQ(h.status().code(), StatusCode::kParseError) << header;
     EXPECT_NE(h.status().message().find("recording.json"), std::string::npos) << h.status().message();
+    if (std::string(header).find("meta") != std::string::npos) {
+      EXPECT_NE(h.status().message().find("meta"), std::string::npos) << h.status().message();
+    }
   }
   std::ofstream(dir / "recording.json") << R"({"format": "idi-recording", "version": 1})";
   for (const char* event : {"{\"type\":7,\"t_ns\":0}\n", "{\"type\":\"tick\",\"t_ns\":1.5}\n"}) {
@@ -94,6 +101,58 @@ TEST(RecordingTest, MalformedInputIsNamed) {
   Recording rec;
   rec.dir = dir.string();
   EXPECT_FALSE(LoadRecordedImage(rec, nlohmann::json::parse(R"({"type":"image","t_ns":0,"file":5})")).ok());
+  fs::remove_all(dir);
+}
+
+// Image events a replay cannot trust are refused with the file and line named (before, all were read:
+// a frame recorded twice was reconstructed from twice and exported twice, a t_ns near the end of int64
+// overflowed in UnixTimeOf, and an absolute or ../ file read an image from outside the recording).
+TEST(RecordingTest, RefusesImageEventsThatCannotBeReplayed) {
+  const fs::path dir = fs::temp_directory_path() / ("idi_recording_events_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  // Created at a wall-clock time (as every run is): 2^63 - 1 ns after it does not fit in int64.
+  std::ofstream(dir / "recording.json")
+      << R"({"format": "idi-recording", "version": 1, "kind": "scan", "created_unix_ns": 1700000000000000000})";
+  const std::string first =
+      R"({"t_ns": 1, "type": "image", "camera": "left", "seq": 1, "file": "images/000001_left.png"})";
+  const std::pair<std::string, std::string> refused[] = {
+      {R"({"t_ns": 2, "type": "image", "camera": "left", "seq": 1, "file": "images/000001_left_again.png"})",
+       "frame left/1 recorded twice (first on line 1)"},
+      {R"({"t_ns": 2, "type": "image", "camera": "right", "seq": 1, "file": "images/000001_left.png"})",
+       "images/000001_left.png recorded twice"},
+      {R"({"t_ns": 2, "type": "image", "camera": "left", "seq": -5, "file": "images/a.png"})", "seq"},
+      {R"({"t_ns": 2, "type": "image", "camera": "left", "seq": "x", "file": "images/a.png"})", "seq"},
+      {R"({"t_ns": 2, "type": "image", "camera": "left", "seq": 2.5, "file": "images/a.png"})", "seq"},
+      {R"({"t_ns": 9223372036854775807, "type": "note"})", "t_ns"},
+      {R"({"t_ns": 18446744073709551615, "type": "note"})", "t_ns"},
+      {R"({"t_ns": 2, "type": "image", "camera": "left", "seq": 2, "file": "/etc/hostname"})", "file"},
+      {R"({"t_ns": 2, "type": "image", "camera": "left", "seq": 2, "file": "../outside.png"})", "file"},
+      {R"({"t_ns": 2, "type": "image", "camera": "left", "seq": 2, "file": "images/../../outside.png"})", "file"},
+      {R"({"t_ns": 2, "type": "image", "camera": "left", "seq": 2, "file": 5})", "file"},
+      {R"({"t_ns": 2, "type": "image", "camera": "left", "seq": 2})", "file"},
+  };
+  for (const auto& [event, message] : refused) {
+    std::ofstream(dir / "events.jsonl") << first << "\n" << event << "\n";
+    const auto r = ReadRecording(dir.string());
+    ASSERT_FALSE(r.ok()) << event;
+    EXPECT_EQ(r.status().code(), StatusCode::kParseError) << event;
+    EXPECT_NE(r.status().message().find("events.jsonl:2: "), std::string::npos) << r.status().message();
+    EXPECT_NE(r.status().message().find(message), std::string::npos) << r.status().message();
+  }
+  // Other frames of the same camera, the same frame number of another camera, and a t_ns that fits are
+  // read.
+  std::ofstream(dir / "events.jsonl")
+      << first << "\n"
+      << R"({"t_ns": 2, "type": "image", "camera": "left", "seq": 2, "file": "images/000002_left.png"})"
+      << "\n"
+      << R"({"t_ns": 3, "type": "image", "camera": "right", "seq": 1, "file": "images/000001_right.png"})"
+      << "\n"
+      << R"({"t_ns": 7000000000000000000, "type": "note"})"
+      << "\n";
+  const auto r = ReadRecording(dir.string());
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->events.size(), 4u);
   fs::remove_all(dir);
 }
 

@@ -2,9 +2,12 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <exception>
+#include <iostream>
 #include <sstream>
 
 #include "shared/runtime/logging.h"
@@ -39,14 +42,18 @@ CliApp::CliApp(const std::string& description, const std::string& program) : app
   app.fallthrough();
 }
 
-CLI::App* CliApp::AddCommand(CLI::App* parent, const std::string& name, const std::string& description,
+CLI::App* CliApp::AddCommand(CLI::App* parent,
+                             const std::string& name,
+                             const std::string& description,
                              std::function<Status()> run) {
   CLI::App* sub = parent->add_subcommand(name, description);
   sub->parse_complete_callback([this, run = std::move(run)] { selected = run; });
   return sub;
 }
 
-int RunCli(CliApp& cli, int argc, char** argv) {
+namespace {
+
+int ParseAndRun(CliApp& cli, int argc, char** argv) {
   try {
     try {
       cli.app.parse(argc, argv);
@@ -83,7 +90,35 @@ int RunCli(CliApp& cli, int argc, char** argv) {
   }
 }
 
-Result<std::vector<double>> ParseNumberList(const std::string& text, std::size_t expected_count,
+// Whether everything written to stdout reached it: the results of a run whose stdout is a full disk or
+// a closed descriptor are lost, and a script must not take exit 0 for them. A write that failed while
+// the command ran (a flush of a full buffer) leaves the stream's error flag set, and errno its reason
+// unless a later call failed too (then only a reason a write gives is believed); the last one fails here.
+int CheckStandardOutput(const std::string& program, int exit_code) {
+  const int earlier = errno;
+  errno = 0;
+  std::cout.flush();
+  const bool flushed = std::fflush(stdout) == 0;
+  if (flushed && !std::ferror(stdout) && !std::cout.fail()) return exit_code;
+  int error = errno;  // of the flush that failed: std::cout's flushes stdout
+  if (error == 0) {
+    const bool write_error = earlier == ENOSPC || earlier == EDQUOT || earlier == EFBIG || earlier == EBADF ||
+                             earlier == EPIPE || earlier == EIO;
+    error = write_error ? earlier : EIO;
+  }
+  std::fprintf(stderr, "%s: writing to standard output failed: %s\n", program.c_str(), std::strerror(error));
+  return exit_code == kExitOk ? kExitFailed : exit_code;
+}
+
+}  // namespace
+
+int RunCli(CliApp& cli, int argc, char** argv) {
+  const int exit_code = ParseAndRun(cli, argc, argv);
+  return CheckStandardOutput(cli.app.get_name(), exit_code);
+}
+
+Result<std::vector<double>> ParseNumberList(const std::string& text,
+                                            std::size_t expected_count,
                                             const std::string& what) {
   std::vector<double> out;
   // getline yields no field after a final comma: "1,2," would read as two numbers.

@@ -3,7 +3,6 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
-
 #include <functional>
 #include <string>
 
@@ -28,16 +27,20 @@ struct CliApp {
   CliApp(const std::string& description, const std::string& program);
 
   // Adds a subcommand whose run function is `run` (called with logging set up).
-  CLI::App* AddCommand(CLI::App* parent, const std::string& name, const std::string& description,
+  CLI::App* AddCommand(CLI::App* parent,
+                       const std::string& name,
+                       const std::string& description,
                        std::function<Status()> run);
 };
 
 // Parses the command line, sets up logging, then runs the selected subcommand. Errors are logged to
-// stderr with what and where; returns the process exit code.
+// stderr with what and where; returns the process exit code. A run whose output could not all be
+// written to stdout (a full disk, a closed descriptor) fails (exit 1) with the reason on stderr.
 int RunCli(CliApp& cli, int argc, char** argv);
 
 // Parses "x,y,z"-style lists of numbers; InvalidArgument naming `what` on malformed input.
-Result<std::vector<double>> ParseNumberList(const std::string& text, std::size_t expected_count,
+Result<std::vector<double>> ParseNumberList(const std::string& text,
+                                            std::size_t expected_count,
                                             const std::string& what);
 
 }  // namespace idi

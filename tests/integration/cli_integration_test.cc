@@ -5,8 +5,10 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <vector>
 
 #include "tests/support/run_command.h"
 
@@ -150,6 +152,62 @@ TEST(CliIntegrationTest, CalibrationOutputsAreCheckedFirst) {
         << r.err;
     EXPECT_EQ(r.err.find("acquir"), std::string::npos) << "no acquisition before the check: " << r.err;
   }
+  std::filesystem::remove_all(dir);
+}
+
+std::string FileText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// An output that is an input (or another output) is refused before any work, and the input is left as
+// it was (before: the readings were replaced by the calibration, robot 1's file by the rail's).
+TEST(CliIntegrationTest, CalibrationOutputsMayNotReplaceInputs) {
+  const std::string dir = MakeTempDir("calibrate_same_cli");
+  for (const char* name : {"obs.csv", "r1.yaml", "r2.yaml"}) std::ofstream(dir + "/" + name) << name << "\n";
+  const std::string d = dir + "/";
+  for (const std::string& args :
+       {"robot --observations " + d + "obs.csv --distance-mm 1000 --out " + d + "obs.csv",
+        "robot --observations " + d + "obs.csv --distance-mm 1000 --out " + d + "x.yaml --report " + d + "../" +
+            std::filesystem::path(dir).filename().string() + "/obs.csv",
+        "robot --sim --out " + d + "r.yaml --report " + d + "./r.yaml",
+        "rtu --robot1 " + d + "r1.yaml --robot2 " + d + "r2.yaml --observations " + d + "obs.csv --out " + d +
+            "r1.yaml",
+        "rtu --robot1 " + d + "r1.yaml --robot2 " + d + "r1.yaml --observations " + d + "obs.csv --out " + d + "x.yaml",
+        "rtu --sim --robot1 " + d + "new.yaml --robot2 " + d + "new.yaml --out " + d + "x.yaml",
+        "ptu --observations " + d + "obs.csv --out " + d + "x.yaml --report " + d + "obs.csv"}) {
+    const auto r = RunCommand(kWorkcell + " calibrate " + args);
+    EXPECT_EQ(r.exit_code, 2) << args << ": " << r.err;
+    EXPECT_TRUE(r.err.find("is the same file as the input") != std::string::npos ||
+                r.err.find("are the same file") != std::string::npos)
+        << args << ": " << r.err;
+    EXPECT_EQ(r.err.find("acquir"), std::string::npos) << "no acquisition before the check: " << r.err;
+  }
+  for (const char* name : {"obs.csv", "r1.yaml", "r2.yaml"}) EXPECT_EQ(FileText(d + name), std::string(name) + "\n");
+  for (const char* name : {"x.yaml", "r.yaml", "new.yaml"}) EXPECT_FALSE(std::filesystem::exists(d + name)) << name;
+  std::filesystem::remove_all(dir);
+}
+
+// Readings that cannot determine the model (here a rail distance given as 0.001 mm, as if in metres for
+// 1 m) give a calibration with infinite standard deviations: it is not written (the loader refuses such
+// a file), the parameters are named, and the exit code says the run failed. Before: written, exit 0.
+TEST(CliIntegrationTest, AnUndeterminedCalibrationIsNotWritten) {
+  const std::string dir = MakeTempDir("calibrate_undetermined_cli");
+  auto r = RunCommand(kWorkcell + " calibrate robot --sim --readings 200 --observations " + dir + "/obs.csv --out " +
+                      dir + "/a.yaml");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = RunCommand(kWorkcell + " calibrate robot --observations " + dir + "/obs.csv --distance-mm 0.001 --out " + dir +
+                 "/b.yaml --report " + dir + "/b.json");
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("b.yaml: not written: the data do not determine"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/b.yaml"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/b.json"));
+  // Fewer readings than the solve needs are refused before the acquisition.
+  r = RunCommand(kWorkcell + " calibrate robot --sim --readings 135 --out " + dir + "/c.yaml");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("136"), std::string::npos) << r.err;
   std::filesystem::remove_all(dir);
 }
 
@@ -334,7 +392,132 @@ TEST(CliIntegrationTest, ReconstructWritesAnOverlayPerView) {
   EXPECT_NE(r.err.find("cannot create the folder"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("reconstruct: 2 views"), std::string::npos) << "no reconstruction before the check: " << r.err;
   EXPECT_TRUE(r.out.empty()) << r.out;
+  // An output may not replace an input or another output: refused before the reconstruction.
+  const std::string views_text = FileText(dir + "/views.yaml");
+  for (const std::string& args : {"--ply " + dir + "/views.yaml",
+                                  "--ply " + dir + "/a/view.png",
+                                  "--ply " + dir + "/out/view_model.png --overlay " + dir + "/out"}) {
+    r = RunCommand(kWorkcell + " reconstruct --views " + dir + "/views.yaml --json " + args);
+    EXPECT_EQ(r.exit_code, 2) << args << ": " << r.err;
+    EXPECT_NE(r.err.find("same file"), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("reconstruct: 2 views"), std::string::npos) << "no reconstruction before the check: " << r.err;
+  }
+  EXPECT_EQ(FileText(dir + "/views.yaml"), views_text);
   fs::remove_all(dir);
+}
+
+// An image whose header claims 100000 x 100000 px: OpenCV's imread throws (CV_IO_MAX_IMAGE_PIXELS).
+void WriteHugeHeaderPgm(const std::string& path) {
+  std::ofstream(path, std::ios::binary) << "P5\n100000 100000\n255\nabcd";
+}
+
+// A scan recording of one 64 x 64 image event (images/000001_left.png, written by `image`).
+void WriteScanRecording(const std::string& dir, const std::function<void(const std::string&)>& image) {
+  std::filesystem::create_directories(dir + "/images");
+  std::ofstream(dir + "/recording.json")
+      << R"({"format": "idi-recording", "version": 1, "kind": "scan", "cameras": {"left": {"width": 64, "height": 64,)"
+      << R"( "params": [60, 60, 31.5, 31.5, 0, 0, 0, 0, 0]}}})"
+      << "\n";
+  std::ofstream(dir + "/events.jsonl") << R"({"t_ns": 1, "type": "image", "camera": "left", "seq": 1, )"
+                                       << R"("file": "images/000001_left.png", )"
+                                       << R"("cam_from_world": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 1000]})"
+                                       << "\n";
+  image(dir + "/images/000001_left.png");
+}
+
+// features --overlay: an overlay that would be written over one of the images (fo/a.png's overlay is
+// fo/a_features.png, also an input) is refused before any image is read (before, a.png's overlay
+// replaced the second image, which was then read as an input).
+TEST(CliIntegrationTest, FeaturesRefusesAnOverlayOverAnInput) {
+  const std::string dir = MakeTempDir("features_same_cli");
+  std::filesystem::create_directories(dir + "/fo");
+  WriteSquarePgm(dir + "/fo/a.png", 64);
+  WriteSquarePgm(dir + "/fo/a_features.png", 48);
+  const std::string before = FileText(dir + "/fo/a_features.png");
+  const auto r = RunCommand(kWorkcell + " features " + dir + "/fo/a.png " + dir +
+                            "/fo/a_features.png --json --overlay " + dir + "/fo");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("a_features.png is the same file as the input"), std::string::npos) << r.err;
+  EXPECT_TRUE(r.out.empty()) << "refused before any image: " << r.out;
+  EXPECT_EQ(FileText(dir + "/fo/a_features.png"), before);
+  std::filesystem::remove_all(dir);
+}
+
+// export-rawlog: an OUT that is the recording's header, its events or one of its images is refused before
+// anything is written (before, the export replaced it: the recording was destroyed).
+TEST(CliIntegrationTest, ExportRawlogRefusesToWriteOverTheRecording) {
+  if (RunCommand(kWorkcell + " --help").out.find("export-rawlog") == std::string::npos) {
+    GTEST_SKIP() << "built without MRPT";
+  }
+  const std::string dir = MakeTempDir("export_same_cli");
+  WriteScanRecording(dir + "/rec", [](const std::string& path) { WriteSquarePgm(path, 64); });
+  for (const std::string file : {"recording.json", "events.jsonl", "images/000001_left.png"}) {
+    const std::string path = dir + "/rec/" + file;
+    const std::string before = FileText(path);
+    const auto r = RunCommand(kWorkcell + " export-rawlog " + dir + "/rec " + path);
+    EXPECT_EQ(r.exit_code, 2) << file << ": " << r.err;
+    EXPECT_NE(r.err.find("is the same file as the input"), std::string::npos) << r.err;
+    EXPECT_TRUE(FileText(path) == before) << file << " was changed";
+  }
+  const auto r = RunCommand(kWorkcell + " export-rawlog " + dir + "/rec " + dir + "/out.rawlog");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  std::filesystem::remove_all(dir);
+}
+
+// An image OpenCV refuses with an exception (a header claiming 100000 x 100000 px) is that image's error,
+// naming it, and the images after it are processed (before: "fatal", exit 1, the batch stopped there).
+TEST(CliIntegrationTest, FeaturesReportsAnImageOpenCvRefusesAndGoesOn) {
+  const std::string dir = MakeTempDir("features_huge_cli");
+  WriteSquarePgm(dir + "/box.pgm", 64);
+  WriteHugeHeaderPgm(dir + "/bigdim.pgm");
+  const auto r =
+      RunCommand(kWorkcell + " features " + dir + "/box.pgm " + dir + "/bigdim.pgm " + dir + "/box.pgm --json");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_EQ(r.err.find("fatal"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("1 of 3 images"), std::string::npos) << r.err;
+  std::istringstream lines(r.out);
+  std::string line;
+  std::vector<nlohmann::json> results;
+  while (std::getline(lines, line)) results.push_back(nlohmann::json::parse(line));
+  ASSERT_EQ(results.size(), 3u) << r.out;
+  EXPECT_TRUE(results[0].contains("lines")) << r.out;
+  EXPECT_NE(results[1].value("error", "").find("bigdim.pgm: cannot read the image"), std::string::npos) << r.out;
+  EXPECT_TRUE(results[2].contains("lines")) << r.out;
+  std::filesystem::remove_all(dir);
+}
+
+// replay and export-rawlog: a recorded image OpenCV refuses is an error naming it (before: "fatal").
+TEST(CliIntegrationTest, ReplayNamesARecordedImageOpenCvRefuses) {
+  const std::string dir = MakeTempDir("replay_huge_cli");
+  WriteScanRecording(dir, WriteHugeHeaderPgm);
+  std::vector<std::string> commands = {"replay " + dir};
+  if (RunCommand(kWorkcell + " --help").out.find("export-rawlog") != std::string::npos) {
+    commands.push_back("export-rawlog " + dir + " " + dir + "/out.rawlog");
+  }
+  for (const std::string& command : commands) {
+    const auto r = RunCommand(kWorkcell + " " + command);
+    EXPECT_EQ(r.exit_code, 2) << command << ": " << r.err;
+    EXPECT_EQ(r.err.find("fatal"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("images/000001_left.png: cannot read the image"), std::string::npos) << r.err;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out.rawlog"));
+  std::filesystem::remove_all(dir);
+}
+
+// replay: a header whose meta is not an object, or whose meta.points is not a count, is refused naming
+// recording.json and the key (before: an uncaught JSON type_error, "fatal", exit 1).
+TEST(CliIntegrationTest, ReplayRefusesAMetaOfTheWrongType) {
+  const std::string dir = MakeTempDir("replay_meta_cli");
+  WriteScanRecording(dir, [](const std::string& path) { WriteSquarePgm(path, 64); });
+  for (const std::string meta : {R"("x")", R"({"points": "many"})"}) {
+    std::ofstream(dir + "/recording.json")
+        << R"({"format": "idi-recording", "version": 1, "kind": "scan", "meta": )" << meta << "}\n";
+    const auto r = RunCommand(kWorkcell + " replay " + dir);
+    EXPECT_EQ(r.exit_code, 2) << meta << ": " << r.err;
+    EXPECT_EQ(r.err.find("fatal"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("recording.json: meta"), std::string::npos) << r.err;
+  }
+  std::filesystem::remove_all(dir);
 }
 
 TEST(CliIntegrationTest, RmpFootprint) {

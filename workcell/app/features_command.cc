@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+#include <sys/stat.h>
 #include <yaml-cpp/yaml.h>
 
 #include <filesystem>
@@ -12,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
+#include <set>
 
 #include "shared/features/features.h"
 #include "shared/features/laser_spot.h"
@@ -80,7 +82,8 @@ Result<CameraModel> LoadCameraFile(const std::string& path, int* width, int* hei
       if (root["distortion"]) {
         const auto d = root["distortion"].as<std::vector<double>>();
         if (d.size() != 5 && d.size() != 4) {
-          return ParseError(fmt::format("{}: distortion: expected [k1, k2, p1, p2, k3], got {} numbers", path, d.size()));
+          return ParseError(
+              fmt::format("{}: distortion: expected [k1, k2, p1, p2, k3], got {} numbers", path, d.size()));
         }
         cam.params[kK1] = d[0];
         cam.params[kK2] = d[1];
@@ -187,21 +190,84 @@ cv::Point2f ToCv(const PixelGeometry& geometry, const Eigen::Vector2d& fit) {
 }
 
 // Polyline of a straight piece in fit coordinates, bent through the distortion when there is one.
-void DrawPiece(cv::Mat& img, const PixelGeometry& geometry, const Eigen::Vector2d& a, const Eigen::Vector2d& b,
-               const cv::Scalar& colour, int thickness) {
+void DrawPiece(cv::Mat& img,
+               const PixelGeometry& geometry,
+               const Eigen::Vector2d& a,
+               const Eigen::Vector2d& b,
+               const cv::Scalar& colour,
+               int thickness) {
   const int steps = geometry.identity() ? 1 : std::max(1, static_cast<int>((b - a).norm() / 4));
   constexpr int kShift = 4;  // sub-pixel drawing
   for (int i = 0; i < steps; ++i) {
     const cv::Point2f p = ToCv(geometry, a + (b - a) * (static_cast<double>(i) / steps));
     const cv::Point2f q = ToCv(geometry, a + (b - a) * (static_cast<double>(i + 1) / steps));
-    cv::line(img, cv::Point(cvRound(p.x * 16), cvRound(p.y * 16)), cv::Point(cvRound(q.x * 16), cvRound(q.y * 16)),
-             colour, thickness, cv::LINE_AA, kShift);
+    cv::line(img,
+             cv::Point(cvRound(p.x * 16), cvRound(p.y * 16)),
+             cv::Point(cvRound(q.x * 16), cvRound(q.y * 16)),
+             colour,
+             thickness,
+             cv::LINE_AA,
+             kShift);
   }
 }
 
-Status WriteOverlay(const std::string& dir,
+// The overlay file of each image: <stem>_features.png, and <stem>_<n>_features.png for the n-th image of
+// that stem (a/cam.png and b/cam.png), skipping a name another image's overlay has. Named before any
+// image is read, so that they can be checked against the inputs and do not depend on which images fail.
+std::vector<std::string> OverlayNames(const std::vector<std::string>& images) {
+  std::map<std::string, int> stems;
+  std::set<std::string> taken;
+  std::vector<std::string> names;
+  for (const std::string& path : images) {
+    const std::string stem = std::filesystem::path(path).stem().string();
+    int& n = stems[stem];
+    std::string name;
+    do {
+      ++n;
+      name = (n == 1 ? stem : fmt::format("{}_{}", stem, n)) + "_features.png";
+    } while (!taken.insert(name).second);
+    names.push_back(name);
+  }
+  return names;
+}
+
+// Where a path leads, for finding the pairs of paths that may be one file: its resolved absolute path,
+// and the file's device and inode when it exists.
+std::vector<std::string> FileKeys(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::path resolved = fs::weakly_canonical(fs::absolute(path, ec), ec);
+  if (ec) resolved = fs::absolute(path, ec).lexically_normal();
+  std::vector<std::string> keys = {"path " + resolved.string()};
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0) keys.push_back(fmt::format("inode {} {}", st.st_dev, st.st_ino));
+  return keys;
+}
+
+// CheckDistinctFiles for the overlays against the images and the camera file. It compares every pair,
+// a few file-system calls each: minutes over thousands of images. Only the pairs that may be one file
+// (one resolved path, or one inode) are given to it. The overlays are distinct names in one folder.
+Status CheckOverlaysAreNotInputs(const FeaturesCliOptions& o, const std::vector<std::string>& overlays) {
+  std::vector<NamedFile> inputs = {{"--camera", o.camera_file}};
+  for (const std::string& path : o.images) inputs.push_back({"image", path});
+  std::multimap<std::string, std::size_t> input_of_key;
+  for (std::size_t k = 0; k < inputs.size(); ++k) {
+    if (inputs[k].path.empty()) continue;
+    for (std::string& key : FileKeys(inputs[k].path)) input_of_key.emplace(std::move(key), k);
+  }
+  for (const std::string& overlay : overlays) {
+    std::vector<NamedFile> candidates;
+    for (const std::string& key : FileKeys(overlay)) {
+      const auto [begin, end] = input_of_key.equal_range(key);
+      for (auto it = begin; it != end; ++it) candidates.push_back(inputs[it->second]);
+    }
+    IDI_RETURN_IF_ERROR(CheckDistinctFiles(candidates, {{"--overlay", overlay}}, "features"));
+  }
+  return Status::Ok();
+}
+
+Status WriteOverlay(const std::string& out,
                     const std::string& image_path,
-                    const std::string& out_name,
                     const cv::Mat& image,
                     const FeatureResult& r,
                     const PixelGeometry& geometry) {
@@ -227,9 +293,9 @@ Status WriteOverlay(const std::string& dir,
   }
   for (const IdiPoint& p : r.points) {
     const cv::Point2f c = ToCv(geometry, p.xy);
-    cv::circle(canvas, cv::Point(cvRound(c.x * 16), cvRound(c.y * 16)), 3 * 16, cv::Scalar(0, 0, 255), 1, cv::LINE_AA, 4);
+    cv::circle(
+        canvas, cv::Point(cvRound(c.x * 16), cvRound(c.y * 16)), 3 * 16, cv::Scalar(0, 0, 255), 1, cv::LINE_AA, 4);
   }
-  const std::string out = (std::filesystem::path(dir) / out_name).string();
   IDI_RETURN_IF_ERROR(plot::WritePngFile(out, canvas).WithContext("the overlay of " + image_path));
   spdlog::info("wrote overlay {}", out);
   return Status::Ok();
@@ -242,7 +308,14 @@ Status RunFeatures(const FeaturesCliOptions& o) {
     IDI_ASSIGN_OR_RETURN(CameraModel c, LoadCameraFile(o.camera_file, &cam_w, &cam_h));
     camera = c;
   }
+  // The overlays, named up front: one that is an image of the run (fo/a.png's overlay is
+  // fo/a_features.png) would replace that image before it is read.
+  std::vector<std::string> overlays;
   if (!o.overlay_dir.empty()) {
+    for (const std::string& name : OverlayNames(o.images)) {
+      overlays.push_back((std::filesystem::path(o.overlay_dir) / name).string());
+    }
+    IDI_RETURN_IF_ERROR(CheckOverlaysAreNotInputs(o, overlays));
     std::error_code ec;
     std::filesystem::create_directories(o.overlay_dir, ec);
     if (ec) {
@@ -255,17 +328,17 @@ Status RunFeatures(const FeaturesCliOptions& o) {
   int last_w = 0, last_h = 0;
   std::size_t failed = 0;
   Status first_error = Status::Ok();
-  std::map<std::string, int> overlay_names;  // a/cam.png and b/cam.png: cam_features.png, cam_2_features.png
-  for (const std::string& path : o.images) {
-    cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
-    Status status = Status::Ok();
-    if (image.empty()) {
-      status = InvalidArgument(fmt::format("{}: cannot read the image (missing file or not an image format)", path));
-    } else if ((image.channels() == 3 || image.channels() == 4) && image.depth() != CV_8U && image.depth() != CV_16U &&
-               image.depth() != CV_32F) {
+  for (std::size_t i = 0; i < o.images.size(); ++i) {
+    const std::string& path = o.images[i];
+    // An image that cannot be read (missing, not an image, one OpenCV throws on) is this image's error.
+    Result<cv::Mat> read = plot::ReadImageFile(path, cv::IMREAD_UNCHANGED);
+    Status status = read.status();
+    cv::Mat image = read.ok() ? std::move(read).value() : cv::Mat();
+    const bool colour = image.channels() == 3 || image.channels() == 4;
+    if (status.ok() && colour && image.depth() != CV_8U && image.depth() != CV_16U && image.depth() != CV_32F) {
       status = InvalidArgument(
           fmt::format("{}: colour image of pixel depth {} (expected 8-bit, 16-bit or float)", path, image.depth()));
-    } else if (image.channels() == 3 || image.channels() == 4) {
+    } else if (status.ok() && colour) {
       spdlog::info("{}: colour image converted to grey", path);
       cv::Mat grey;
       cv::cvtColor(image, grey, image.channels() == 3 ? cv::COLOR_BGR2GRAY : cv::COLOR_BGRA2GRAY);
@@ -334,10 +407,7 @@ Status RunFeatures(const FeaturesCliOptions& o) {
       }
     }
     if (!o.overlay_dir.empty()) {
-      const std::string stem = std::filesystem::path(path).stem().string();
-      const int n = ++overlay_names[stem];
-      const std::string name = (n == 1 ? stem : fmt::format("{}_{}", stem, n)) + "_features.png";
-      const Status written = WriteOverlay(o.overlay_dir, path, name, image, r, geometry);
+      const Status written = WriteOverlay(overlays[i], path, image, r, geometry);
       if (!written.ok() && image_error.ok()) image_error = written;
     }
     if (!image_error.ok()) {
@@ -351,8 +421,14 @@ Status RunFeatures(const FeaturesCliOptions& o) {
       if (!image_error.ok()) j["error"] = image_error.message();
       std::cout << JsonLine(j) << "\n" << std::flush;
     } else {
-      std::cout << fmt::format("{}: {} x {} px, {} lines, {} IDI points, {} curves, {:.2f} ms (noise {:.2f})\n", path,
-                               r.width, r.height, r.lines.size(), r.points.size(), r.curves.size(), r.timing.total_ms,
+      std::cout << fmt::format("{}: {} x {} px, {} lines, {} IDI points, {} curves, {:.2f} ms (noise {:.2f})\n",
+                               path,
+                               r.width,
+                               r.height,
+                               r.lines.size(),
+                               r.points.size(),
+                               r.curves.size(),
+                               r.timing.total_ms,
                                r.noise_sigma);
       if (spot) {
         std::cout << fmt::format("  laser spot: {}", LaserSpotStatusName(spot->status));
@@ -370,8 +446,10 @@ Status RunFeatures(const FeaturesCliOptions& o) {
     }
   }
   if (failed > 0 && o.images.size() > 1) {
-    return Status(first_error.code(), fmt::format("{} of {} images could not be processed (first: {})", failed,
-                                                  o.images.size(), first_error.message()));
+    return Status(
+        first_error.code(),
+        fmt::format(
+            "{} of {} images could not be processed (first: {})", failed, o.images.size(), first_error.message()));
   }
   return first_error;
 }
@@ -381,16 +459,20 @@ Status RunFeatures(const FeaturesCliOptions& o) {
 void AddFeaturesCommand(CliApp& cli) {
   auto o = std::make_shared<FeaturesCliOptions>();
   CLI::App* cmd = cli.AddCommand(
-      &cli.app, "features",
+      &cli.app,
+      "features",
       "EMPL lines and IDI points of grey images (chapter 7); one JSON object per image per line with --json",
       [o] { return RunFeatures(*o); });
   cmd->add_option("images", o->images, "image files (PNG, PGM, ...; 8- or 16-bit grey; colour is converted)")
       ->required();
-  cmd->add_flag("--json", o->json,
+  cmd->add_flag("--json",
+                o->json,
                 "print {image, width, height, time_ms, lines: [{id, p1, p2, normal, offset, length_px, fit_rms_px, "
                 "...}], points: [{id, xy, lines, ...}], curves} per image");
-  cmd->add_option("--overlay", o->overlay_dir, "folder for <image>_features.png with lines, extensions and points drawn");
-  cmd->add_option("--camera", o->camera_file,
+  cmd->add_option(
+      "--overlay", o->overlay_dir, "folder for <image>_features.png with lines, extensions and points drawn");
+  cmd->add_option("--camera",
+                  o->camera_file,
                   "intrinsics YAML (K: [9], distortion: [k1, k2, p1, p2, k3], optional width/height; or fx_px, "
                   "fy_px, cx_px, cy_px, k1.. keys): lines are fitted in undistorted pixel coordinates")
       ->check(CLI::ExistingFile);

@@ -4,11 +4,13 @@
 #include <spdlog/spdlog.h>
 
 #include <cmath>
+#include <filesystem>
 #include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
 
 #include "shared/replay/recording.h"
+#include "shared/util/atomic_file.h"
 #include "workcell/procedures/structure.h"
 #ifdef IDI_HAVE_RAWLOG
 #include "shared/replay/rawlog_export.h"
@@ -73,15 +75,19 @@ Status ReplayScan(const Recording& rec, bool json) {
   out["views"] = views.size();
   out["points"] = nlohmann::json::array();
   for (const ModelPoint& p : r.model.points) {
-    out["points"].push_back({{"id", p.id}, {"xyz_mm", {p.xyz.x(), p.xyz.y(), p.xyz.z()}}, {"reproj_rms_px", p.reprojection_rms_px}});
+    out["points"].push_back(
+        {{"id", p.id}, {"xyz_mm", {p.xyz.x(), p.xyz.y(), p.xyz.z()}}, {"reproj_rms_px", p.reprojection_rms_px}});
   }
   out["edges"] = r.model.edges;
   if (rec.header.meta.contains("points")) out["recorded_points"] = rec.header.meta["points"];
   if (json) {
     std::cout << out.dump() << "\n";
   } else {
-    std::cout << fmt::format("replayed scan {}: {} views -> {} points, {} edges (recorded run: {} points)\n", rec.dir,
-                             views.size(), r.model.points.size(), r.model.edges.size(),
+    std::cout << fmt::format("replayed scan {}: {} views -> {} points, {} edges (recorded run: {} points)\n",
+                             rec.dir,
+                             views.size(),
+                             r.model.points.size(),
+                             r.model.edges.size(),
                              rec.header.meta.value("points", -1));
   }
   return Status::Ok();
@@ -112,6 +118,17 @@ struct ExportOptions {
 
 Status RunExport(const ExportOptions& o) {
   IDI_ASSIGN_OR_RETURN(const Recording rec, ReadRecording(o.dir));
+  // OUT over the recording's header, events or one of its images would destroy the recording.
+  const std::filesystem::path dir(o.dir);
+  std::vector<NamedFile> inputs = {{"recording header", (dir / "recording.json").string()},
+                                   {"recording events", (dir / "events.jsonl").string()},
+                                   {"recording CAN log", (dir / "can.log").string()}};
+  for (const nlohmann::json& e : rec.events) {
+    if (e.value("type", "") != "image") continue;
+    IDI_ASSIGN_OR_RETURN(std::string image, RecordedImagePath(rec, e));
+    inputs.push_back({"recorded image", std::move(image)});
+  }
+  IDI_RETURN_IF_ERROR(CheckDistinctFiles(inputs, {{"OUT", o.out}}, "export-rawlog"));
   std::vector<RawlogFrame> frames;
   for (std::size_t k = 0; k < rec.events.size(); ++k) {
     const nlohmann::json& e = rec.events[k];
@@ -136,14 +153,14 @@ Status RunExport(const ExportOptions& o) {
 
 void AddReplayCommands(CliApp& cli) {
   auto o = std::make_shared<ReplayOptions>();
-  CLI::App* cmd = cli.AddCommand(&cli.app, "replay", "re-run a recorded run (docs/log-format.md) on this machine",
-                                 [o] { return RunReplay(*o); });
+  CLI::App* cmd = cli.AddCommand(
+      &cli.app, "replay", "re-run a recorded run (docs/log-format.md) on this machine", [o] { return RunReplay(*o); });
   cmd->add_option("dir", o->dir, "recording folder")->required()->check(CLI::ExistingDirectory);
   cmd->add_flag("--json", o->json, "print the result as JSON");
 #ifdef IDI_HAVE_RAWLOG
   auto e = std::make_shared<ExportOptions>();
-  CLI::App* ex = cli.AddCommand(&cli.app, "export-rawlog", "write a recording's images as an MRPT rawlog",
-                                [e] { return RunExport(*e); });
+  CLI::App* ex = cli.AddCommand(
+      &cli.app, "export-rawlog", "write a recording's images as an MRPT rawlog", [e] { return RunExport(*e); });
   ex->add_option("dir", e->dir, "recording folder")->required()->check(CLI::ExistingDirectory);
   ex->add_option("out", e->out, "output .rawlog file")->required();
 #endif
