@@ -26,7 +26,7 @@ struct SentFrame {
 };
 
 struct Observed {
-  std::vector<SentFrame> sent;        // every command frame the driver put on the bus
+  std::vector<SentFrame> sent;  // every command frame the driver put on the bus
   std::vector<TickRecord> ticks;
 };
 
@@ -50,7 +50,10 @@ SimRunOptions SmallRun(const std::string& track_yaml, Observed* seen) {
     if (recent.empty()) return;
     const RmpSentCommand& s = recent.back();
     if (!seen->sent.empty() && seen->sent.back().t_ns == s.timestamp_ns) return;
-    seen->sent.push_back({s.timestamp_ns, s.source_timestamp_ns, s.frame.velocity_counts, s.frame.turn_counts,
+    seen->sent.push_back({s.timestamp_ns,
+                          s.source_timestamp_ns,
+                          s.frame.velocity_counts,
+                          s.frame.turn_counts,
                           loop.driver()->health().status_fresh});
   };
   return o;
@@ -83,7 +86,8 @@ constexpr const char* kStraight = "tape_width_m: 0.05\nspeed_mps: 0.5\npoints_m:
 
 TEST(ClosedLoopTest, FollowsAShortTrackAndStopsAtItsEnd) {
   Observed seen;
-  auto res = RunSimulation(SmallRun("tape_width_m: 0.05\nspeed_mps: 0.5\npoints_m: [[0, 0], [1.6, 0], [1.6, 0.9]]\n", &seen));
+  auto res =
+      RunSimulation(SmallRun("tape_width_m: 0.05\nspeed_mps: 0.5\npoints_m: [[0, 0], [1.6, 0], [1.6, 0.9]]\n", &seen));
   ASSERT_TRUE(res.ok()) << res.status().ToString();
   const RunReport& r = res->report;
   EXPECT_TRUE(r.completed) << r.ToJson().dump();
@@ -325,6 +329,7 @@ TEST(ClosedLoopTest, ReplayingARecordingReproducesItsCommands) {
       "  right: {fx_px: 160, fy_px: 160, cx_px: 159.5, cy_px: 119.5}\nperception: {max_range_m: 3.0}\n";
   auto res = RunSimulation(o);
   ASSERT_TRUE(res.ok()) << res.status().ToString();
+  ASSERT_TRUE(res->output_status.ok()) << res->output_status.ToString();  // the recording was written
   ASSERT_TRUE(res->report.completed);
   auto rep = RunReplay({o.record_dir, (dir / "replay.log").string()});
   ASSERT_TRUE(rep.ok()) << rep.status().ToString();

@@ -80,7 +80,8 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   }
   IDI_RETURN_IF_ERROR(config.planner.Check());
   IDI_RETURN_IF_ERROR(config.perception.Check());
-  IDI_ASSIGN_OR_RETURN(std::unique_ptr<TrackPerception> perception, TrackPerception::Create(config.rig, config.perception));
+  IDI_ASSIGN_OR_RETURN(std::unique_ptr<TrackPerception> perception,
+                       TrackPerception::Create(config.rig, config.perception));
 
   // The clock starts where the log does (its first frame or its first tick, whichever is earlier: on the
   // vehicle the schedule's clock reading comes before the first frame's stamp, in microseconds); the
@@ -101,7 +102,8 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   IDI_ASSIGN_OR_RETURN(std::unique_ptr<RmpDriver> driver, RmpDriver::Create(&bus, &clock, config.driver));
   if (can_out) driver->SetFrameLog(can_out.get());
   LogFrames frames(&log);
-  ControlLoop loop(config.control, &clock, driver.get(), &frames, perception.get(), config.planner, config.track, nullptr);
+  ControlLoop loop(
+      config.control, &clock, driver.get(), &frames, perception.get(), config.planner, config.track, nullptr);
   IDI_RETURN_IF_ERROR(loop.Start());
 
   ReplayResult result;
@@ -109,7 +111,16 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   int lat_n = 0;
   uint64_t pairs_with_track = 0;
   bool moving = false;
+  bool stopped = false;
+  // The driver's frames sent before a stop: the stop's own zero commands are not the recording's.
+  std::size_t sent_before_stop = 0;
   for (const replay::DriveTickRecord& want : log.ticks) {
+    if (o.stop != nullptr && o.stop->load()) {
+      sent_before_stop = bus.sent().size();
+      loop.RequestStop("signal");
+      stopped = true;
+      break;
+    }
     // The recorded run's schedule: its start and every move after a late tick.
     if (driver->next_send_ns() != want.t_ns) {
       const Status st = driver->ResyncSchedule(want.t_ns);
@@ -118,16 +129,18 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
     }
     IDI_ASSIGN_OR_RETURN(const TickRecord got, loop.Step());
     if (got.t_ns != want.t_ns) {
-      return Internal(o.dir + ": replay tick at " + std::to_string(got.t_ns) + " ns, the log's at " + std::to_string(want.t_ns) +
-                      " ns (the driver's schedule differs from the recording)");
+      return Internal(o.dir + ": replay tick at " + std::to_string(got.t_ns) + " ns, the log's at " +
+                      std::to_string(want.t_ns) + " ns (the driver's schedule differs from the recording)");
     }
     ++result.ticks_compared;
     const double dv = std::abs(got.speed_mps - want.speed_mps), dw = std::abs(got.yaw_rate_rps - want.yaw_rate_rps);
     result.max_speed_difference_mps = std::max(result.max_speed_difference_mps, dv);
     result.max_yaw_rate_difference_rps = std::max(result.max_yaw_rate_difference_rps, dw);
     if (dv < 1e-6 && dw < 1e-6 && want.decision == DecisionName(got.decision)) ++result.ticks_matching;
-    if (got.perceived && loop.last_perception() != nullptr && !loop.last_perception()->observation.pieces.empty()) ++pairs_with_track;
+    if (got.perceived && loop.last_perception() != nullptr && !loop.last_perception()->observation.pieces.empty())
+      ++pairs_with_track;
     if (got.speed_mps != 0.0 || got.yaw_rate_rps != 0.0) moving = true;
+    if (o.on_tick) o.on_tick(got);
     if (moving && !loop.finished() && loop.track().initialised()) {
       const double e = std::abs(loop.track().vehicle_offset_m());
       sum_sq += e * e;
@@ -139,10 +152,10 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   const Status shutdown = loop.Shutdown();
   if (!shutdown.ok()) spdlog::warn("replay: driver shutdown: {}", shutdown.ToString());
 
-  // The driver's frames against the log's, in order.
+  // The driver's frames against the log's, in order (after a stop, those before it).
   const std::vector<hal::CanFrame>& sent = bus.sent();
   const std::vector<hal::CanFrame>& logged = bus.logged_transmitted();
-  const std::size_t n = std::min(sent.size(), logged.size());
+  const std::size_t n = std::min(stopped ? sent_before_stop : sent.size(), logged.size());
   for (std::size_t i = 0; i < n; ++i) {
     ++result.can_frames_compared;
     if (sent[i].id == logged[i].id && sent[i].dlc == logged[i].dlc && sent[i].data == logged[i].data &&
@@ -167,14 +180,15 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   r.commands = driver->health().counters.frames_sent;
   r.commands_nonzero = driver->health().counters.motion_frames;
   r.completed = loop.finished();
-  r.end = loop.finished() ? "finished" : "log-ended";
+  r.end = stopped ? "stopped" : loop.finished() ? "finished" : "log-ended";
   r.distance_m = driver->odometry().pose().distance_m;
   const int64_t t_begin = st.running_since_ns >= 0 ? st.running_since_ns : start_ns;
-  const int64_t t_end = st.finished_ns >= 0 ? st.finished_ns : log.ticks.back().t_ns;
+  const int64_t t_end = st.finished_ns >= 0 ? st.finished_ns : stopped ? clock.NowNs() : log.ticks.back().t_ns;
   r.time_s = static_cast<double>(t_end - t_begin) * 1e-9;
   r.lateral_error_rms_m = lat_n > 0 ? std::sqrt(sum_sq / lat_n) : 0.0;
   r.lateral_error_max_m = max_lat;
-  r.track_visible_fraction = st.perceptions > 0 ? static_cast<double>(pairs_with_track) / static_cast<double>(st.perceptions) : 0.0;
+  r.track_visible_fraction =
+      st.perceptions > 0 ? static_cast<double>(pairs_with_track) / static_cast<double>(st.perceptions) : 0.0;
   r.cruise_speed_mps = config.planner.cruise_speed_mps;
   r.extra["lateral_error_reference"] = "the perceived track (no ground truth in a log)";
   r.extra["track_visible_reference"] = "stereo pairs in which the track was perceived";
@@ -187,7 +201,9 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   r.extra["can_frames_sent"] = sent.size();
   r.extra["max_speed_difference_mps"] = result.max_speed_difference_mps;
   r.extra["max_yaw_rate_difference_rps"] = result.max_yaw_rate_difference_rps;
-  r.extra["commands_reproduced"] = result.ticks_matching == result.ticks_compared && result.can_frames_matching == result.can_frames_compared;
+  if (stopped) r.extra["comparison"] = "up to the stop (the ticks and CAN frames before it)";
+  r.extra["commands_reproduced"] =
+      result.ticks_matching == result.ticks_compared && result.can_frames_matching == result.can_frames_compared;
   if (can_out) {
     IDI_RETURN_IF_ERROR(can_out->Close());
     r.extra["can_log"] = o.can_log;

@@ -4,6 +4,8 @@
 // ones the log recorded (tick by tick, and frame by frame on the CAN bus).
 #pragma once
 
+#include <atomic>
+#include <functional>
 #include <string>
 
 #include "rmp/app/sim_run.h"
@@ -13,6 +15,10 @@ namespace idi::rmp {
 struct ReplayOptions {
   std::string dir;
   std::string can_log;  // the frames the replayed driver sends (candump -l); empty: none
+  // Set by a signal (the service's stop): the replay ends at the next tick, the driver sends its zero
+  // commands and the report's end is "stopped", as in RunSimulation.
+  std::atomic<bool>* stop = nullptr;
+  std::function<void(const TickRecord&)> on_tick = {};  // tests
 };
 
 struct ReplayResult {

@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -10,6 +12,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <vector>
 
 #include "rmp/app/hardware_run.h"
 #include "rmp/app/replay_run.h"
@@ -24,14 +27,27 @@ std::atomic<bool> g_stop{false};
 
 extern "C" void RmpOnSignal(int /*sig*/) { g_stop.store(true); }
 
-void InstallSignalHandlers() {
-  struct sigaction sa {};
-  sa.sa_handler = RmpOnSignal;
-  sigemptyset(&sa.sa_mask);
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
-  sigaction(SIGHUP, &sa, nullptr);
-}
+// SIGINT, SIGTERM and SIGHUP set g_stop while a command runs; the handlers before it are restored when
+// it returns (the command may run inside a longer-lived process, a test's).
+class StopOnSignals {
+ public:
+  StopOnSignals() {
+    g_stop.store(false);
+    struct sigaction sa {};
+    sa.sa_handler = RmpOnSignal;
+    sigemptyset(&sa.sa_mask);
+    for (std::size_t i = 0; i < kSignals.size(); ++i) sigaction(kSignals[i], &sa, &previous_[i]);
+  }
+  ~StopOnSignals() {
+    for (std::size_t i = 0; i < kSignals.size(); ++i) sigaction(kSignals[i], &previous_[i], nullptr);
+  }
+  StopOnSignals(const StopOnSignals&) = delete;
+  StopOnSignals& operator=(const StopOnSignals&) = delete;
+
+ private:
+  static constexpr std::array<int, 3> kSignals = {SIGINT, SIGTERM, SIGHUP};
+  std::array<struct sigaction, 3> previous_{};
+};
 
 void PrintReport(const RunReport& r, bool json) {
   if (json) {
@@ -41,38 +57,143 @@ void PrintReport(const RunReport& r, bool json) {
   std::cout << fmt::format(
       "{}: {:.2f} m in {:.1f} s, lateral error rms {:.1f} mm max {:.1f} mm, track visible {:.1f} %, {} stereo pairs "
       "(perception median {:.2f} ms, p99 {:.2f} ms), {} commands ({})\n",
-      r.completed ? "completed" : "not completed", r.distance_m, r.time_s, 1000 * r.lateral_error_rms_m,
-      1000 * r.lateral_error_max_m, 100 * r.track_visible_fraction, r.frames, r.perception_ms_median, r.perception_ms_p99,
-      r.commands, r.end);
+      r.completed ? "completed" : "not completed",
+      r.distance_m,
+      r.time_s,
+      1000 * r.lateral_error_rms_m,
+      1000 * r.lateral_error_max_m,
+      100 * r.track_visible_fraction,
+      r.frames,
+      r.perception_ms_median,
+      r.perception_ms_p99,
+      r.commands,
+      r.end);
+}
+
+// A check of an output before the run: when it fails nothing ran, so the command line is at fault
+// (InvalidArgument, exit 2) whatever the check's own code (an unwritable folder is an IoError).
+Status BeforeTheRun(const Status& st) {
+  return st.ok() || st.code() == StatusCode::kInvalidArgument ? st : InvalidArgument(st.message());
+}
+
+// Whether `path` is `folder` or a file or folder inside it (symbolic links of the existing part of each
+// resolved, so that "rec/../rec/x" and a link to the folder count too).
+bool InsideFolder(const std::string& path, const std::string& folder) {
+  namespace fs = std::filesystem;
+  auto resolved = [](const std::string& p) {
+    std::error_code ec;
+    fs::path r = fs::weakly_canonical(fs::absolute(p, ec), ec).lexically_normal();
+    if (!r.has_filename() && r.has_parent_path()) r = r.parent_path();  // "rec/" names "rec"
+    return r;
+  };
+  const fs::path f = resolved(folder), p = resolved(path);
+  const auto [f_end, p_at] = std::mismatch(f.begin(), f.end(), p.begin(), p.end());
+  return f_end == f.end();
+}
+
+// Refuses an output file inside a folder the command reads or writes as a whole (a drive log), and one
+// that is the folder or one of its parents (writing a file there would fail after the run, or replace
+// the folder that holds the log).
+Status CheckOutsideFolder(const std::vector<NamedFile>& outputs, const NamedFile& folder, const std::string& command) {
+  if (folder.path.empty()) return Status::Ok();
+  for (const NamedFile& out : outputs) {
+    if (out.path.empty()) continue;
+    if (InsideFolder(out.path, folder.path)) {
+      return InvalidArgument(command + ": " + out.option + " " + out.path + " is inside the drive log " +
+                             folder.option + " " + folder.path +
+                             ": writing it would damage the log (name a file outside it)");
+    }
+    if (InsideFolder(folder.path, out.path)) {
+      return InvalidArgument(command + ": the drive log " + folder.option + " " + folder.path + " is inside " +
+                             out.option + " " + out.path + ": it cannot be both a file and the log's folder " +
+                             "(name a file outside the log)");
+    }
+  }
+  return Status::Ok();
+}
+
+// Every regular file of a drive log folder, its subfolders' (images/) included, as inputs for
+// CheckDistinctFiles (a hard link or symbolic link to one of them elsewhere is the same file). Symbolic
+// links inside the log are not followed: they are not part of it.
+std::vector<NamedFile> DriveLogFiles(const std::string& dir) {
+  namespace fs = std::filesystem;
+  std::vector<NamedFile> files;
+  std::error_code ec;
+  for (fs::recursive_directory_iterator it(dir, fs::directory_options::skip_permission_denied, ec), end;
+       !ec && it != end;
+       it.increment(ec)) {
+    std::error_code type_ec;
+    if (it->is_regular_file(type_ec) && !it->is_symlink(type_ec))
+      files.push_back({"drive log file", it->path().string()});
+  }
+  return files;
+}
+
+// `replay`'s output against its input: the CAN log it writes must not be one of the log's files.
+Status CheckReplayFiles(const ReplayOptions& o) {
+  if (o.can_log.empty()) return Status::Ok();
+  IDI_RETURN_IF_ERROR(CheckOutsideFolder({{"--can-log", o.can_log}}, {"DIR", o.dir}, "replay"));
+  IDI_RETURN_IF_ERROR(CheckDistinctFiles(DriveLogFiles(o.dir), {{"--can-log", o.can_log}}, "replay"));
+  return BeforeTheRun(CheckOutputFile(o.can_log, "--can-log"));
 }
 
 struct SimCli {
   std::string track, record, can_log, png, config, report;
   double speed_mps = 0.0, max_time_s = 0.0;
+  bool speed_given = false, max_time_given = false;  // set after parsing
   bool json = false, real_time = false;
 };
 
-Status RunSimCli(const SimCli& o) {
+// The track file's own speed limit (TrackSpec::Check), for --speed-mps.
+constexpr double kMaxSpeedMps = 3.0;
+// A simulated day: a limit, not "never" (the loop runs until the track's end or the limit).
+constexpr double kMaxSimTimeS = 86400.0;
+
+Status CheckSimCli(const SimCli& o) {
   if (o.track.empty()) return InvalidArgument("sim: --track TRACK.yaml is required");
+  if (o.speed_given && !(o.speed_mps > 0 && o.speed_mps <= kMaxSpeedMps)) {
+    return InvalidArgument(fmt::format("sim: --speed-mps must be in (0, {}] m/s, got {}", kMaxSpeedMps, o.speed_mps));
+  }
+  if (o.max_time_given && !(o.max_time_s > 0 && o.max_time_s <= kMaxSimTimeS)) {
+    return InvalidArgument(fmt::format("sim: --max-time-s must be in (0, {}] s, got {}", kMaxSimTimeS, o.max_time_s));
+  }
+  // Before the run, not after it: an output that would destroy an input, the recording or another
+  // output, and one that cannot be written.
+  const std::vector<NamedFile> outputs = {{"--report", o.report}, {"--png", o.png}, {"--can-log", o.can_log}};
+  std::vector<NamedFile> all_outputs = outputs;
+  all_outputs.push_back({"--record", o.record});
+  IDI_RETURN_IF_ERROR(CheckOutsideFolder(outputs, {"--record", o.record}, "sim"));
+  IDI_RETURN_IF_ERROR(CheckDistinctFiles({{"--track", o.track}, {"--config", o.config}}, all_outputs, "sim"));
+  for (const NamedFile& out : outputs) IDI_RETURN_IF_ERROR(BeforeTheRun(CheckOutputFile(out.path, out.option)));
+  return BeforeTheRun(CheckOutputFolder(o.record, "--record"));
+}
+
+Status RunSimCli(const SimCli& o) {
+  IDI_RETURN_IF_ERROR(CheckSimCli(o));
   SimRunOptions so;
   if (!o.config.empty()) {
     IDI_ASSIGN_OR_RETURN(so.config, LoadRmpConfig(o.config));
     IDI_ASSIGN_OR_RETURN(so.config_text, ReadFile(o.config));
   }
   IDI_ASSIGN_OR_RETURN(so.track, LoadTrackFile(o.track));
-  if (o.speed_mps > 0) so.track.speed_mps = o.speed_mps;
+  if (o.speed_given) so.track.speed_mps = o.speed_mps;
   if (so.track.speed_mps == 0) so.track.speed_mps = so.config.planner.cruise_speed_mps;
   so.record_dir = o.record;
   so.can_log = o.can_log;
   so.png = o.png;
-  so.max_time_s = o.max_time_s;
+  if (o.max_time_given) so.max_time_s = o.max_time_s;
   so.real_time = o.real_time || so.config.sim_real_time;
-  g_stop.store(false);
-  InstallSignalHandlers();
+  const StopOnSignals signals;
   so.stop = &g_stop;
   IDI_ASSIGN_OR_RETURN(const SimRunResult res, RunSimulation(so));
-  if (!o.report.empty()) IDI_RETURN_IF_ERROR(WriteFileAtomically(o.report, res.report.ToJson().dump(2) + "\n"));
+  // The summary even when an output failed: the run itself is not lost with it.
+  Status written = res.output_status;
+  if (!o.report.empty()) {
+    const Status st = WriteFileAtomically(o.report, res.report.ToJson().dump(2) + "\n");
+    if (written.ok()) written = st;
+  }
   PrintReport(res.report, o.json);
+  IDI_RETURN_IF_ERROR(written);
   if (g_stop.load()) return Cancelled("sim: stopped by a signal (zero commanded)");
   return Status::Ok();
 }
@@ -91,17 +212,49 @@ struct RunCli {
   bool json = false;
 };
 
+// The drive log folder of `run`: --record, else state_dir/logs/<time> when the config says record: true
+// (its logs folder made here). Checked before the run; empty: none.
+Result<std::string> RunRecordFolder(const RunCli& o, const RmpConfig& config) {
+  if (config.backend == Backend::kReplay) {
+    // The replay drives nothing: its drive log is replay.dir. Its report is the output.
+    if (!o.record.empty()) {
+      return InvalidArgument(
+          "run: --record is not supported with the replay backend (" + o.config +
+          "): the drive log it replays is replay.dir; for the replayed CAN frames use idi-rmp replay "
+          "DIR --can-log FILE");
+    }
+    if (config.record)
+      spdlog::warn("{}: record: true is ignored by the replay backend (its drive log is replay.dir)", o.config);
+    return std::string();
+  }
+  std::vector<NamedFile> inputs = {{"--config", o.config}};
+  if (config.backend == Backend::kSim) inputs.push_back({"sim.track", config.sim_track});
+  if (!o.record.empty()) {
+    IDI_RETURN_IF_ERROR(CheckDistinctFiles(inputs, {{"--record", o.record}}, "run"));
+    IDI_RETURN_IF_ERROR(BeforeTheRun(CheckOutputFolder(o.record, "--record")));
+    return o.record;
+  }
+  if (!config.record) return std::string();
+  if (config.state_dir.empty()) return InvalidArgument(o.config + ": record: true needs state_dir");
+  const std::string record = LogDirName(config.state_dir);
+  const std::string logs = std::filesystem::path(record).parent_path().string();
+  std::error_code ec;
+  std::filesystem::create_directories(logs, ec);
+  if (ec) {
+    return InvalidArgument(o.config + ": state_dir " + config.state_dir + ": cannot make " + logs +
+                           " for record: true: " + ec.message());
+  }
+  if (const Status st = CheckOutputFolder(record, "drive log"); !st.ok()) {
+    return InvalidArgument(o.config + ": state_dir " + config.state_dir + " (record: true): " + st.message());
+  }
+  return record;
+}
+
 Status RunService(const RunCli& o) {
   IDI_ASSIGN_OR_RETURN(const RmpConfig config, LoadRmpConfig(o.config));
   IDI_ASSIGN_OR_RETURN(const std::string config_text, ReadFile(o.config));
-  std::string record = o.record;
-  if (record.empty() && config.record) {
-    if (config.state_dir.empty()) return InvalidArgument(o.config + ": record: true needs state_dir");
-    record = LogDirName(config.state_dir);
-    std::filesystem::create_directories(std::filesystem::path(record).parent_path());
-  }
-  g_stop.store(false);
-  InstallSignalHandlers();
+  IDI_ASSIGN_OR_RETURN(const std::string record, RunRecordFolder(o, config));
+  const StopOnSignals signals;
   spdlog::info("idi-rmp run: backend {} ({})", BackendName(config.backend), o.config);
   RunReport report;
   switch (config.backend) {
@@ -119,15 +272,23 @@ Status RunService(const RunCli& o) {
       auto res = RunSimulation(so);
       NotifyStopping();
       if (!res.ok()) return res.status();
+      if (!res->output_status.ok()) {
+        PrintReport(res->report, o.json);
+        return res->output_status;
+      }
       report = res->report;
       break;
     }
     case Backend::kReplay: {
       if (config.replay_dir.empty()) return InvalidArgument(o.config + ": backend replay needs replay.dir");
+      ReplayOptions ro;
+      ro.dir = config.replay_dir;
+      ro.stop = &g_stop;  // the service's stop (SIGTERM from systemd): zero and end, like the sim backend
       NotifyReady();
-      IDI_ASSIGN_OR_RETURN(const ReplayResult res, RunReplay({config.replay_dir, ""}));
+      auto res = RunReplay(ro);
       NotifyStopping();
-      report = res.report;
+      if (!res.ok()) return res.status();
+      report = res->report;
       break;
     }
     case Backend::kHardware: {
@@ -160,6 +321,8 @@ CLI::App* AddSimRunCommand(CliApp& cli, CLI::App* sim) {
   sim->add_option("--max-time-s", o->max_time_s, "simulated time limit (default: from the track's length)");
   sim->add_flag("--real-time", o->real_time, "pace the twin with the wall clock");
   sim->parse_complete_callback([&cli, sim, o] {
+    o->speed_given = sim->count("--speed-mps") > 0;
+    o->max_time_given = sim->count("--max-time-s") > 0;
     if (sim->get_subcommands().empty()) cli.selected = [o] { return RunSimCli(*o); };
   });
   return sim;
@@ -168,22 +331,32 @@ CLI::App* AddSimRunCommand(CliApp& cli, CLI::App* sim) {
 void AddReplayCommand(CliApp& cli) {
   auto o = std::make_shared<ReplayOptions>();
   auto json = std::make_shared<bool>(false);
-  CLI::App* cmd = cli.AddCommand(&cli.app, "replay", "re-run the pipeline on a drive log and compare the commands", [o, json] {
-    IDI_ASSIGN_OR_RETURN(const ReplayResult res, RunReplay(*o));
-    PrintReport(res.report, *json);
-    return Status::Ok();
-  });
-  cmd->add_option("dir", o->dir, "the drive log folder (idi-rmp sim --record, or the vehicle's state_dir/logs)")->required();
+  CLI::App* cmd =
+      cli.AddCommand(&cli.app, "replay", "re-run the pipeline on a drive log and compare the commands", [o, json] {
+        IDI_RETURN_IF_ERROR(CheckReplayFiles(*o));
+        const StopOnSignals signals;
+        ReplayOptions ro = *o;
+        ro.stop = &g_stop;
+        IDI_ASSIGN_OR_RETURN(const ReplayResult res, RunReplay(ro));
+        PrintReport(res.report, *json);
+        if (g_stop.load()) return Cancelled("replay: stopped by a signal (zero commanded)");
+        return Status::Ok();
+      });
+  cmd->add_option("dir", o->dir, "the drive log folder (idi-rmp sim --record, or the vehicle's state_dir/logs)")
+      ->required();
   cmd->add_flag("--json", *json, "print the report as JSON on stdout");
   cmd->add_option("--can-log", o->can_log, "write the replayed driver's CAN frames in candump -l format");
 }
 
 void AddRunCommand(CliApp& cli) {
   auto o = std::make_shared<RunCli>();
-  CLI::App* cmd = cli.AddCommand(&cli.app, "run", "drive: the service (hardware, replay or sim backend from the config)",
-                                 [o] { return RunService(*o); });
+  CLI::App* cmd =
+      cli.AddCommand(&cli.app, "run", "drive: the service (hardware, replay or sim backend from the config)", [o] {
+        return RunService(*o);
+      });
   cmd->add_option("--config", o->config, "rmp.yaml (e.g. /etc/idi/rmp.yaml)")->required();
-  cmd->add_option("--record", o->record, "write a drive log to this new folder (default: state_dir/logs/<time> if record: true)");
+  cmd->add_option(
+      "--record", o->record, "write a drive log to this new folder (default: state_dir/logs/<time> if record: true)");
   cmd->add_flag("--json", o->json, "print the final report as JSON on stdout");
 }
 

@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <set>
@@ -17,7 +18,8 @@ namespace {
 // Walks a YAML map: each key is handled by the field it names; unknown keys are errors.
 class MapReader {
  public:
-  MapReader(const YAML::Node& node, std::string source, std::string path) : node_(node), source_(std::move(source)), path_(std::move(path)) {}
+  MapReader(const YAML::Node& node, std::string source, std::string path)
+      : node_(node), source_(std::move(source)), path_(std::move(path)) {}
 
   std::string Where(const YAML::Node& n) const { return source_ + ":" + std::to_string(n.Mark().line + 1); }
   std::string Key(const std::string& k) const { return path_.empty() ? k : path_ + "." + k; }
@@ -42,6 +44,23 @@ class MapReader {
       } catch (const YAML::Exception&) {
         return InvalidArgument(Where(v) + ": " + Key(key) + " must be an integer");
       }
+    };
+  }
+  // An integer in [lo, hi]; `why` says where the bounds come from.
+  void Int(const std::string& key, int* out, int lo, int hi, const std::string& why) {
+    handlers_[key] = [this, key, out, lo, hi, why](const YAML::Node& v) -> Status {
+      long long n = 0;
+      try {
+        n = v.as<long long>();
+      } catch (const YAML::Exception&) {
+        return InvalidArgument(Where(v) + ": " + Key(key) + " must be an integer");
+      }
+      if (n < lo || n > hi) {
+        return InvalidArgument(Where(v) + ": " + Key(key) + " = " + std::to_string(n) + " must be in [" +
+                               std::to_string(lo) + ", " + std::to_string(hi) + "] (" + why + ")");
+      }
+      *out = static_cast<int>(n);
+      return Status::Ok();
     };
   }
   void Uint64(const std::string& key, uint64_t* out) {
@@ -87,7 +106,8 @@ class MapReader {
 
   Status Run() {
     if (!node_ || node_.IsNull()) return Status::Ok();
-    if (!node_.IsMap()) return InvalidArgument(Where(node_) + ": " + (path_.empty() ? "the file" : path_) + " must be a map");
+    if (!node_.IsMap())
+      return InvalidArgument(Where(node_) + ": " + (path_.empty() ? "the file" : path_) + " must be a map");
     std::set<std::string> seen;
     for (const auto& kv : node_) {
       if (!kv.first.IsScalar()) return InvalidArgument(Where(kv.first) + ": keys must be plain names");
@@ -110,12 +130,18 @@ class MapReader {
   std::map<std::string, std::function<Status(const YAML::Node&)>> handlers_;
 };
 
+// The largest image side the twin's renderer draws (sim::Render refuses larger cameras).
+constexpr int kMaxImageSidePx = 16384;
+// The largest image: the side bound alone let 16384x16384 through, 268 Mpx and 2 GB per camera in the
+// perception's undistortion map (CV_32FC2) before the first frame.
+constexpr int64_t kMaxImagePx = 16 * 1024 * 1024;
+
 struct CameraPoseConfig {
   double x_m, y_m, z_m, yaw_rad, pitch_down_rad;
 };
 
-Status ReadRigCamera(const YAML::Node& n, const std::string& source, const std::string& path, RigCamera* cam,
-                     CameraPoseConfig* pose) {
+Status ReadRigCamera(
+    const YAML::Node& n, const std::string& source, const std::string& path, RigCamera* cam, CameraPoseConfig* pose) {
   MapReader r(n, source, path);
   auto& p = cam->intrinsics.params;
   r.Number("fx_px", &p[kFx]);
@@ -147,9 +173,12 @@ bool LibcameraBuilt() {
 
 const char* BackendName(Backend b) {
   switch (b) {
-    case Backend::kSim: return "sim";
-    case Backend::kReplay: return "replay";
-    case Backend::kHardware: return "hardware";
+    case Backend::kSim:
+      return "sim";
+    case Backend::kReplay:
+      return "replay";
+    case Backend::kHardware:
+      return "hardware";
   }
   return "?";
 }
@@ -194,14 +223,17 @@ Status RmpConfig::Check() const {
           return InvalidArgument(what + ": backend 'libcamera': this idi-rmp was built without libcamera " +
                                  "(install libcamera-dev and rebuild, or use backend: v4l2)");
         }
-        if (c.device.empty()) return InvalidArgument(what + " has no device (a libcamera camera id, or its index 0, 1, ...)");
+        if (c.device.empty())
+          return InvalidArgument(what + " has no device (a libcamera camera id, or its index 0, 1, ...)");
       } else {
         return InvalidArgument(what + ": backend '" + c.backend + "' must be v4l2 or libcamera");
       }
       if (c.width <= 0 || c.height <= 0) {
-        return InvalidArgument(what + ": width and height must be positive, got " + std::to_string(c.width) + "x" + std::to_string(c.height));
+        return InvalidArgument(what + ": width and height must be positive, got " + std::to_string(c.width) + "x" +
+                               std::to_string(c.height));
       }
-      if (!(c.frame_rate_hz >= 0 && c.frame_rate_hz <= 1000)) return InvalidArgument(what + ": frame_rate_hz must be in [0, 1000]");
+      if (!(c.frame_rate_hz >= 0 && c.frame_rate_hz <= 1000))
+        return InvalidArgument(what + ": frame_rate_hz must be in [0, 1000]");
       // The perception undistorts with the rig's calibration: a camera delivering another size would
       // fail on every pair while the vehicle stands.
       const CameraModel& calibrated = c.name == "right" ? rig.right.intrinsics : rig.left.intrinsics;
@@ -212,7 +244,8 @@ Status RmpConfig::Check() const {
       }
       for (std::size_t j = 0; j < i; ++j) {
         if (cameras[j].backend == c.backend && cameras[j].device == c.device) {
-          return InvalidArgument(what + " uses the same " + c.backend + " device '" + c.device + "' as camera '" + cameras[j].name + "'");
+          return InvalidArgument(what + " uses the same " + c.backend + " device '" + c.device + "' as camera '" +
+                                 cameras[j].name + "'");
         }
       }
       left = left || c.name == "left";
@@ -241,15 +274,25 @@ Result<RmpConfig> ParseRmpConfig(const std::string& text, const std::string& sou
     int width = c.rig.left.intrinsics.width, height = c.rig.left.intrinsics.height;
     MapReader r(n, source, "rig");
     r.Custom("left", [&](const YAML::Node& v) { return ReadRigCamera(v, source, "rig.left", &c.rig.left, &poses[0]); });
-    r.Custom("right", [&](const YAML::Node& v) { return ReadRigCamera(v, source, "rig.right", &c.rig.right, &poses[1]); });
-    r.Int("width_px", &width);
-    r.Int("height_px", &height);
+    r.Custom("right",
+             [&](const YAML::Node& v) { return ReadRigCamera(v, source, "rig.right", &c.rig.right, &poses[1]); });
+    // The twin renders the images (and the perception undistorts them) whole: a size the renderer
+    // refuses made the ground footprint and the undistortion maps allocate gigabytes first.
+    const std::string why = "the twin renders images of 16 to " + std::to_string(kMaxImageSidePx) + " px a side";
+    r.Int("width_px", &width, 16, kMaxImageSidePx, why);
+    r.Int("height_px", &height, 16, kMaxImageSidePx, why);
     IDI_RETURN_IF_ERROR(r.Run());
+    if (static_cast<int64_t>(width) * height > kMaxImagePx) {
+      return InvalidArgument(r.Where(n) + ": rig.width_px x rig.height_px = " + std::to_string(width) + "x" +
+                             std::to_string(height) + " must be at most " + std::to_string(kMaxImagePx) +
+                             " px (16 Mpx) per camera");
+    }
     RigCamera* cams[2] = {&c.rig.left, &c.rig.right};
     for (int k = 0; k < 2; ++k) {
       cams[k]->intrinsics.width = width;
       cams[k]->intrinsics.height = height;
-      cams[k]->vehicle_from_camera = LookAheadCameraPose(poses[k].x_m, poses[k].y_m, poses[k].z_m, poses[k].yaw_rad, poses[k].pitch_down_rad);
+      cams[k]->vehicle_from_camera =
+          LookAheadCameraPose(poses[k].x_m, poses[k].y_m, poses[k].z_m, poses[k].yaw_rad, poses[k].pitch_down_rad);
     }
     return Status::Ok();
   });
@@ -372,14 +415,16 @@ Result<RmpConfig> ParseRmpConfig(const std::string& text, const std::string& sou
       fr.Number("stamp_glitch_at_s", &f.stamp_glitch_at_s);
       fr.Number("stamp_glitch_s", &f.stamp_glitch_s);
       fr.Custom("covered_m", [&](const YAML::Node& list) -> Status {
-        if (!list.IsSequence()) return InvalidArgument(fr.Where(list) + ": sim.faults.covered_m must be a list of [from, to]");
+        if (!list.IsSequence())
+          return InvalidArgument(fr.Where(list) + ": sim.faults.covered_m must be a list of [from, to]");
         f.covered_m.clear();
         for (std::size_t i = 0; i < list.size(); ++i) {
           try {
             if (!list[i].IsSequence() || list[i].size() != 2) throw YAML::Exception(list[i].Mark(), "");
             f.covered_m.emplace_back(list[i][0].as<double>(), list[i][1].as<double>());
           } catch (const YAML::Exception&) {
-            return InvalidArgument(fr.Where(list[i]) + ": sim.faults.covered_m[" + std::to_string(i) + "] must be [from, to]");
+            return InvalidArgument(fr.Where(list[i]) + ": sim.faults.covered_m[" + std::to_string(i) +
+                                   "] must be [from, to]");
           }
         }
         return Status::Ok();
@@ -394,12 +439,17 @@ Result<RmpConfig> ParseRmpConfig(const std::string& text, const std::string& sou
     return r.Run();
   });
   IDI_RETURN_IF_ERROR(top.Run());
-  if (backend == "sim") c.backend = Backend::kSim;
-  else if (backend == "replay") c.backend = Backend::kReplay;
-  else if (backend == "hardware") c.backend = Backend::kHardware;
-  else return InvalidArgument(source + ": backend must be sim, replay or hardware, got '" + backend + "'");
+  if (backend == "sim")
+    c.backend = Backend::kSim;
+  else if (backend == "replay")
+    c.backend = Backend::kReplay;
+  else if (backend == "hardware")
+    c.backend = Backend::kHardware;
+  else
+    return InvalidArgument(source + ": backend must be sim, replay or hardware, got '" + backend + "'");
   if (!(rate_hz >= 4.0 && rate_hz <= 100.0)) {
-    return InvalidArgument(source + ": control.rate_hz = " + std::to_string(rate_hz) + " must be in [4, 100] (the RMP wants a command every 10-300 ms)");
+    return InvalidArgument(source + ": control.rate_hz = " + std::to_string(rate_hz) +
+                           " must be in [4, 100] (the RMP wants a command every 10-300 ms)");
   }
   c.driver.command_rate_hz = rate_hz;
   c.planner.control_period_s = 1.0 / rate_hz;

@@ -55,6 +55,38 @@ TEST(RmpConfigTest, ReadsSectionsWithUnits) {
   ASSERT_EQ(c->sim.faults.covered_m.size(), 1u);
 }
 
+// rig: {width_px: 2147483647, height_px: 2147483647} was read, and `idi-rmp sim` then allocated 23 GB
+// for the cameras' ground footprints: the sizes are bounded by what the twin's renderer draws.
+TEST(RmpConfigTest, RefusesImageSizesTheRendererCannotDraw) {
+  for (const auto& [text, key] : std::vector<std::pair<std::string, std::string>>{
+           {"rig: {width_px: 2147483647, height_px: 2147483647}\n", "rig.width_px = 2147483647"},
+           {"rig:\n  width_px: 640\n  height_px: 16385\n", "rig.height_px = 16385"},
+           {"rig: {width_px: 99999999999}\n", "rig.width_px = 99999999999"},
+           {"rig: {width_px: 0}\n", "rig.width_px = 0"},
+           {"rig: {height_px: -480}\n", "rig.height_px = -480"}}) {
+    const auto r = ParseRmpConfig(text, "c.yaml");
+    ASSERT_FALSE(r.ok()) << text;
+    EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_NE(r.status().message().find("c.yaml:"), std::string::npos) << text << ": " << r.status().message();
+    EXPECT_NE(r.status().message().find(key), std::string::npos) << text << ": " << r.status().message();
+    EXPECT_NE(r.status().message().find("16384"), std::string::npos) << text << ": " << r.status().message();
+  }
+  // Each side within its bound, the image not: 268 Mpx, 2 GB per camera in the undistortion map.
+  const auto square = ParseRmpConfig("rig:\n  width_px: 16384\n  height_px: 16384\n", "c.yaml");
+  ASSERT_FALSE(square.ok());
+  EXPECT_EQ(square.status().code(), StatusCode::kInvalidArgument);
+  const std::string m = square.status().message();
+  EXPECT_NE(m.find("c.yaml:"), std::string::npos) << m;
+  EXPECT_NE(m.find("rig.width_px"), std::string::npos) << m;
+  EXPECT_NE(m.find("rig.height_px"), std::string::npos) << m;
+  EXPECT_NE(m.find("16777216"), std::string::npos) << m;
+  EXPECT_TRUE(ParseRmpConfig("rig: {width_px: 4096, height_px: 4096}\n", "c.yaml").ok()) << "16 Mpx, the limit";
+  const auto largest = ParseRmpConfig("rig: {width_px: 16384, height_px: 16}\n", "c.yaml");
+  ASSERT_TRUE(largest.ok()) << largest.status().ToString();
+  EXPECT_EQ(largest->rig.right.intrinsics.width, 16384);
+  EXPECT_EQ(largest->rig.right.intrinsics.height, 16);
+}
+
 TEST(RmpConfigTest, RefusesMistakesNamingFileLineAndKey) {
   auto unknown = ParseRmpConfig("planner:\n  cruise_speed: 0.5\n", "c.yaml");
   ASSERT_FALSE(unknown.ok());
@@ -122,7 +154,8 @@ TEST(RmpConfigTest, RefusesMistakesNamingFileLineAndKey) {
 
 // hardware.cameras with the given entries (and the CAN interface the hardware backend needs).
 Result<RmpConfig> HardwareCameras(const std::string& left, const std::string& right) {
-  return ParseRmpConfig("backend: hardware\nhardware:\n  cameras:\n    - " + left + "\n    - " + right + "\n", "c.yaml");
+  return ParseRmpConfig("backend: hardware\nhardware:\n  cameras:\n    - " + left + "\n    - " + right + "\n",
+                        "c.yaml");
 }
 
 TEST(RmpConfigTest, CameraBackendsAreCheckedAtLoad) {
@@ -162,8 +195,11 @@ TEST(RmpConfigTest, LibcameraCamerasByIdOrIndexWhenBuiltWithIt) {
     ASSERT_FALSE(no_id.ok());
     EXPECT_NE(no_id.status().message().find("libcamera camera id"), std::string::npos) << no_id.status().message();
     // The same index twice is one camera; v4l2 and libcamera names never collide.
-    EXPECT_FALSE(HardwareCameras("{name: left, backend: libcamera, device: 0}", "{name: right, backend: libcamera, device: 0}").ok());
-    EXPECT_TRUE(HardwareCameras("{name: left, backend: libcamera, device: 0}", "{name: right, device: /dev/video0}").ok());
+    EXPECT_FALSE(
+        HardwareCameras("{name: left, backend: libcamera, device: 0}", "{name: right, backend: libcamera, device: 0}")
+            .ok());
+    EXPECT_TRUE(
+        HardwareCameras("{name: left, backend: libcamera, device: 0}", "{name: right, device: /dev/video0}").ok());
   } else {
     ASSERT_FALSE(c.ok());
     EXPECT_NE(c.status().message().find("built without libcamera"), std::string::npos) << c.status().message();

@@ -99,12 +99,15 @@ Result<SimRunResult> RunSimulation(const SimRunOptions& o) {
   SimRmpOptions rmp_options;
   rmp_options.model = config.driver.codec.model;
   IDI_ASSIGN_OR_RETURN(std::unique_ptr<SimWorld> world, SimWorld::Create(o.track, config.sim, config.rig, rmp_options));
-  IDI_ASSIGN_OR_RETURN(std::unique_ptr<TrackPerception> perception, TrackPerception::Create(config.rig, config.perception));
+  IDI_ASSIGN_OR_RETURN(std::unique_ptr<TrackPerception> perception,
+                       TrackPerception::Create(config.rig, config.perception));
 
   std::unique_ptr<replay::DriveLogWriter> log;
   if (!o.record_dir.empty()) {
     RecordingHeader header;
-    header.created_unix_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+    header.created_unix_ns =
+        std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+            .count();
     header.created_clock_ns = world->clock()->NowNs();
     header.cameras["left"] = config.rig.left.intrinsics;
     header.cameras["right"] = config.rig.right.intrinsics;
@@ -123,16 +126,25 @@ Result<SimRunResult> RunSimulation(const SimRunOptions& o) {
     IDI_ASSIGN_OR_RETURN(can_log, replay::CandumpWriter::Open(o.can_log, co));
   }
 
-  IDI_ASSIGN_OR_RETURN(std::unique_ptr<RmpDriver> driver, RmpDriver::Create(world->endpoint(), world->clock(), config.driver));
+  IDI_ASSIGN_OR_RETURN(std::unique_ptr<RmpDriver> driver,
+                       RmpDriver::Create(world->endpoint(), world->clock(), config.driver));
   sim::VirtualCanBus* bus = world->bus();
   sim::VirtualCanEndpoint* ep = world->endpoint();
   driver->SetBusRecovery([bus, ep] {
     bus->RestartEndpoint(ep);
     return Status::Ok();
   });
-  driver->SetEventSink([](int64_t t, const std::string& e) { spdlog::info("rmp driver t={:.3f} s: {}", static_cast<double>(t) * 1e-9, e); });
-  ControlLoop loop(config.control, world->clock(), driver.get(), world->frames(), perception.get(), config.planner,
-                   config.track, log.get());
+  driver->SetEventSink([](int64_t t, const std::string& e) {
+    spdlog::info("rmp driver t={:.3f} s: {}", static_cast<double>(t) * 1e-9, e);
+  });
+  ControlLoop loop(config.control,
+                   world->clock(),
+                   driver.get(),
+                   world->frames(),
+                   perception.get(),
+                   config.planner,
+                   config.track,
+                   log.get());
   if (can_log) driver->SetFrameLog(can_log.get());
   IDI_RETURN_IF_ERROR(loop.Start());
 
@@ -194,39 +206,57 @@ Result<SimRunResult> RunSimulation(const SimRunOptions& o) {
   report.end_distance_m = result.truth.end_distance_m;
   report.max_speed_mps = result.truth.max_speed_mps;
   report.completed = loop.finished() && result.truth.end_distance_m <= 0.5;
+  // The outputs after the run: the first failure is kept and the rest still written.
+  Status& out = result.output_status;
+  auto keep = [&out](const Status& written) {
+    if (out.ok() && !written.ok()) out = written;
+    return written.ok();
+  };
+  bool can_log_written = !o.can_log.empty();
   if (log) {
-    IDI_RETURN_IF_ERROR(log->Finish({{"source", "sim"},
-                                     {"track", o.track.source},
-                                     {"config_yaml", o.config_text},
-                                     {"cruise_speed_mps", config.planner.cruise_speed_mps},
-                                     {"tape_width_m", o.track.tape_width_m},
-                                     {"rig", RigJson(config.rig)},
-                                     {"report", report.ToJson()}}));
-    report.extra["record"] = o.record_dir;
-    if (!o.can_log.empty()) {
-      std::error_code ec;
-      std::filesystem::copy_file(std::filesystem::path(o.record_dir) / replay::kDriveLogCanFile, o.can_log,
-                                 std::filesystem::copy_options::overwrite_existing, ec);
-      if (ec) return IoError(o.can_log + ": cannot write the CAN log: " + ec.message());
+    const bool finished = keep(log->Finish({{"source", "sim"},
+                                            {"track", o.track.source},
+                                            {"config_yaml", o.config_text},
+                                            {"cruise_speed_mps", config.planner.cruise_speed_mps},
+                                            {"tape_width_m", o.track.tape_width_m},
+                                            {"rig", RigJson(config.rig)},
+                                            {"report", report.ToJson()}}));
+    if (finished) report.extra["record"] = o.record_dir;
+    // The recording's CAN log, copied only from a finished recording. Read and written rather than
+    // copy_file: --can-log may be a device (/dev/null) or a link, written in place or at its target.
+    if (!o.can_log.empty() && !finished) {
+      can_log_written = false;  // the run's failure is the recording's, already kept
+    } else if (!o.can_log.empty()) {
+      const std::string recorded = (std::filesystem::path(o.record_dir) / replay::kDriveLogCanFile).string();
+      const Result<std::string> text = ReadFile(recorded);
+      const Status copied = text.ok() ? WriteFileAtomically(o.can_log, *text) : text.status();
+      if (!copied.ok()) can_log_written = keep(IoError(o.can_log + ": cannot write the CAN log: " + copied.message()));
     }
   }
-  if (can_log) IDI_RETURN_IF_ERROR(can_log->Close());
-  if (!o.can_log.empty()) report.extra["can_log"] = o.can_log;
+  if (can_log) can_log_written = keep(can_log->Close());
+  if (can_log_written) report.extra["can_log"] = o.can_log;
   if (!o.png.empty()) {
-    IDI_RETURN_IF_ERROR(WriteRunPng(o.png, o.track, result.truth, config.sim.faults.covered_m,
-                                    o.track.source + fmt::format(" at {:.2f} m/s: lateral error rms {:.1f} mm, max {:.1f} mm",
-                                                                 config.planner.cruise_speed_mps,
-                                                                 1000 * report.lateral_error_rms_m,
-                                                                 1000 * report.lateral_error_max_m)));
-    report.extra["png"] = o.png;
+    const bool written =
+        keep(WriteRunPng(o.png,
+                         o.track,
+                         result.truth,
+                         config.sim.faults.covered_m,
+                         o.track.source + fmt::format(" at {:.2f} m/s: lateral error rms {:.1f} mm, max {:.1f} mm",
+                                                      config.planner.cruise_speed_mps,
+                                                      1000 * report.lateral_error_rms_m,
+                                                      1000 * report.lateral_error_max_m)));
+    if (written) report.extra["png"] = o.png;
   }
   result.report = report;
   if (!run_status.ok()) return run_status;
   return result;
 }
 
-Status WriteRunPng(const std::string& path, const TrackSpec& track, const SimTruth& truth,
-                   const std::vector<std::pair<double, double>>& covered_m, const std::string& title) {
+Status WriteRunPng(const std::string& path,
+                   const TrackSpec& track,
+                   const SimTruth& truth,
+                   const std::vector<std::pair<double, double>>& covered_m,
+                   const std::string& title) {
   plot::Figure map(900, 700);
   map.SetTitle(title);
   map.SetEqualAspect(true);
@@ -273,7 +303,8 @@ Status WriteRunPng(const std::string& path, const TrackSpec& track, const SimTru
     }
     if (!x.empty()) map.AddScatter(x, y, b.label, b.color, plot::Marker::kCircle);
   }
-  map.AddScatter({track.points_m.back().x()}, {track.points_m.back().y()}, "track end", plot::kPurple, plot::Marker::kCross);
+  map.AddScatter(
+      {track.points_m.back().x()}, {track.points_m.back().y()}, "track end", plot::kPurple, plot::Marker::kCross);
   plot::Figure err_plot(900, 300);
   err_plot.SetTitle("lateral error along the track");
   err_plot.x_axis().label = "distance along the track (m)";

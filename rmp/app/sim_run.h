@@ -41,11 +41,11 @@ struct SimRunOptions {
   RmpConfig config = DefaultRmpConfig();
   std::string config_text;  // the configuration file's text (saved in the drive log for replay)
   TrackSpec track;
-  std::string record_dir;  // drive log; empty: none
-  std::string can_log;     // candump log of the driver's bus; empty: none
-  std::string png;         // track, driven path and lateral error; empty: none
-  double max_time_s = 0.0;  // 0: 2.5 x the track's length at cruise speed + 30 s
-  bool real_time = false;   // pace the twin with the wall clock (the `run` command)
+  std::string record_dir;             // drive log; empty: none
+  std::string can_log;                // candump log of the driver's bus; empty: none
+  std::string png;                    // track, driven path and lateral error; empty: none
+  double max_time_s = 0.0;            // 0: 2.5 x the track's length at cruise speed + 30 s
+  bool real_time = false;             // pace the twin with the wall clock (the `run` command)
   std::atomic<bool>* stop = nullptr;  // set by a signal: stop (zero) and end
   std::function<void(const TickRecord&, SimWorld&, const ControlLoop&)> on_tick;  // tests
 };
@@ -55,13 +55,21 @@ struct SimRunResult {
   SimTruth truth;
   ControlLoopStats stats;
   double render_wall_s = 0.0;  // SimWorld::render_wall_s at the end
+  // An output (the drive log's end, the CAN log, the PNG) that could not be written after the run; the
+  // report is whole all the same, so that the caller can show it before failing.
+  Status output_status;
 };
 
+// Fails when the run could not start or a tick failed; a failure to write an output after the run is
+// in SimRunResult::output_status instead (check it).
 Result<SimRunResult> RunSimulation(const SimRunOptions& options);
 
 // The PNG: the track (tape and gaps), the driven path coloured by lateral error, and the lateral
 // error along the track below it.
-Status WriteRunPng(const std::string& path, const TrackSpec& track, const SimTruth& truth,
-                   const std::vector<std::pair<double, double>>& covered_m, const std::string& title);
+Status WriteRunPng(const std::string& path,
+                   const TrackSpec& track,
+                   const SimTruth& truth,
+                   const std::vector<std::pair<double, double>>& covered_m,
+                   const std::string& title);
 
 }  // namespace idi::rmp

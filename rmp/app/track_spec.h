@@ -40,7 +40,7 @@ Result<TrackSpec> LoadTrackFile(const std::string& path);
 
 struct TrackSceneOptions {
   double floor_albedo = 0.35;
-  double floor_noise = 0.15;       // texture amplitude
+  double floor_noise = 0.15;  // texture amplitude
   double floor_noise_scale_m = 0.2;
   double tape_albedo = 0.85;
   // Stretches (arc length) where something covers the tape: a dark mat lies over it.
@@ -50,7 +50,9 @@ struct TrackSceneOptions {
   uint64_t seed = 1;
 };
 
-// Floor, tape pieces (split at the gaps) and covers.
+// Floor, tape pieces (split at the gaps) and covers. InvalidArgument naming the file, the point and its
+// coordinates when the twin cannot lay the tape: a turn sharper than 150 deg, or a segment too short for
+// the mitred turns at its ends.
 Result<sim::Scene> BuildTrackScene(const TrackSpec& track, const TrackSceneOptions& options = {});
 
 // The centre line split into the stretches where tape lies (not in a gap or covered).

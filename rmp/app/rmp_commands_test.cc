@@ -1,0 +1,359 @@
+// idi-rmp's sim, replay and run commands as a user runs them: outputs that would destroy an input or a
+// recording are refused before any work, numeric options are checked, and the replay backend stops.
+#include "rmp/app/rmp_commands.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "rmp/app/replay_run.h"
+#include "rmp/segway/rmp_codec.h"
+#include "shared/replay/candump_log.h"
+#include "shared/util/atomic_file.h"
+
+namespace idi::rmp {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A short straight track and small cameras: a run takes a second or two.
+constexpr const char* kCommandsTestTrack = "tape_width_m: 0.05\nspeed_mps: 0.5\npoints_m: [[0, 0], [1.0, 0]]\n";
+constexpr const char* kCommandsTestConfig =
+    "rig:\n  width_px: 320\n  height_px: 240\n  left: {fx_px: 160, fy_px: 160, cx_px: 159.5, cy_px: 119.5}\n"
+    "  right: {fx_px: 160, fy_px: 160, cx_px: 159.5, cy_px: 119.5}\nperception: {max_range_m: 3.0}\n";
+
+class RmpCommandsTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("idi-rmp-commands-" + std::to_string(::getpid()) + "-" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    track_ = Write("track.yaml", kCommandsTestTrack);
+    config_ = Write("rmp.yaml", kCommandsTestConfig);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string Write(const std::string& name, const std::string& text) {
+    const std::string path = (dir_ / name).string();
+    EXPECT_TRUE(WriteFileAtomically(path, text).ok()) << path;
+    return path;
+  }
+  static std::string Read(const std::string& path) {
+    auto text = ReadFile(path);
+    return text.ok() ? *text : "(unreadable)";
+  }
+  int Run(std::vector<std::string> args) {
+    CliApp cli("test", "idi-rmp");
+    AddSimRunCommand(cli);
+    AddReplayCommand(cli);
+    AddRunCommand(cli);
+    args.insert(args.begin(), {"idi-rmp", "-q"});
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    return RunCli(cli, static_cast<int>(argv.size()), argv.data());
+  }
+  // The exit code and the error message on stderr.
+  std::pair<int, std::string> RunCapturingErrors(std::vector<std::string> args) {
+    ::testing::internal::CaptureStderr();
+    const int rc = Run(std::move(args));
+    return {rc, ::testing::internal::GetCapturedStderr()};
+  }
+  int Sim(std::vector<std::string> args) {
+    args.insert(args.begin(), {"sim", "--track", track_, "--config", config_});
+    return Run(std::move(args));
+  }
+  // A drive log of the short track.
+  std::string Record(const std::string& name) {
+    const std::string rec = (dir_ / name).string();
+    EXPECT_EQ(Sim({"--record", rec}), 0);
+    return rec;
+  }
+
+  fs::path dir_;
+  std::string track_, config_;
+};
+
+TEST_F(RmpCommandsTest, SimRefusesAnOutputThatIsAnInput) {
+  for (const char* option : {"--png", "--report", "--can-log"}) {
+    for (const std::string& input : {track_, config_}) {
+      EXPECT_EQ(Sim({option, input}), 2) << option << " " << input;
+    }
+  }
+  EXPECT_EQ(Read(track_), kCommandsTestTrack);
+  EXPECT_EQ(Read(config_), kCommandsTestConfig);
+  // Through another name of the file, too.
+  fs::create_symlink(track_, dir_ / "link.yaml");
+  EXPECT_EQ(Sim({"--report", (dir_ / "link.yaml").string()}), 2);
+  EXPECT_EQ(Read(track_), kCommandsTestTrack);
+  // Two outputs that are one file.
+  const std::string out = (dir_ / "out").string();
+  EXPECT_EQ(Sim({"--png", out, "--report", out}), 2);
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST_F(RmpCommandsTest, SimRefusesAnOutputInsideItsRecording) {
+  // The folder exists (empty), so that only the check against the recording refuses these outputs.
+  const std::string rec = (dir_ / "rec").string();
+  fs::create_directories(rec);
+  for (const std::string& out : {rec + "/events.jsonl", rec + "/recording.json", rec + "/can.log", rec, rec + "/"}) {
+    for (const char* option : {"--png", "--report", "--can-log"}) {
+      const auto [rc, err] =
+          RunCapturingErrors({"sim", "--track", track_, "--config", config_, "--record", rec, option, out});
+      EXPECT_EQ(rc, 2) << option << " " << out;
+      EXPECT_NE(err.find("inside"), std::string::npos) << option << " " << out << ": " << err;
+      EXPECT_TRUE(fs::is_empty(rec)) << option << " " << out << ": refused before the run";
+    }
+  }
+  // An output that holds the recording: a new file where the run would make its parent folder.
+  const std::string parent = (dir_ / "x").string();
+  for (const char* option : {"--png", "--report", "--can-log"}) {
+    const auto [rc, err] = RunCapturingErrors(
+        {"sim", "--track", track_, "--config", config_, "--record", parent + "/rec", option, parent});
+    EXPECT_EQ(rc, 2) << option;
+    EXPECT_NE(err.find("inside"), std::string::npos) << option << ": " << err;
+    EXPECT_FALSE(fs::exists(parent)) << option << ": refused before the run";
+  }
+  // The recording folder may not be an input either.
+  const auto [rc, err] = RunCapturingErrors({"sim", "--track", track_, "--config", config_, "--record", track_});
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(err.find("same file as the input"), std::string::npos) << err;
+  EXPECT_EQ(Read(track_), kCommandsTestTrack);
+}
+
+// Nothing ran when an output cannot be written: the command line is at fault (exit 2, not 1).
+TEST_F(RmpCommandsTest, UnwritableOutputsAreRefusedAsArguments) {
+  if (::geteuid() == 0) GTEST_SKIP() << "root writes in a read-only folder";
+  const fs::path ro = dir_ / "read-only";
+  fs::create_directories(ro);
+  fs::permissions(ro, fs::perms::owner_read | fs::perms::owner_exec);
+  for (const char* option : {"--png", "--report", "--can-log"}) {
+    const auto [rc, err] =
+        RunCapturingErrors({"sim", "--track", track_, "--config", config_, option, (ro / "out").string()});
+    EXPECT_EQ(rc, 2) << option << ": " << err;
+    EXPECT_NE(err.find(option), std::string::npos) << err;
+  }
+  EXPECT_EQ(Sim({"--record", (ro / "rec").string()}), 2);
+  fs::permissions(ro, fs::perms::owner_all);
+}
+
+TEST_F(RmpCommandsTest, SimChecksItsOutputsBeforeTheRun) {
+  const std::string rec = (dir_ / "rec").string();
+  const std::string missing = (dir_ / "no-such-folder" / "x").string();
+  for (const char* option : {"--png", "--report", "--can-log"}) {
+    const auto [rc, err] =
+        RunCapturingErrors({"sim", "--track", track_, "--config", config_, "--record", rec, option, missing});
+    EXPECT_EQ(rc, 2) << option;
+    EXPECT_NE(err.find(option), std::string::npos) << err;
+    EXPECT_FALSE(fs::exists(rec)) << option << ": the run would have made the recording";
+  }
+  EXPECT_EQ(Sim({"--record", (dir_ / "no-such-folder" / "rec").string(), "--png", track_ + ".png"}), 0)
+      << "a new record folder's parents are made";
+  EXPECT_EQ(Sim({"--record", track_ + "/rec"}), 2) << "its nearest existing parent is a file";
+}
+
+TEST_F(RmpCommandsTest, SimOutputFailingAfterTheRunKeepsTheReport) {
+  // An output that cannot be written after the run (the check before it passed): the report is still
+  // there for the command to print.
+  SimRunOptions o;
+  auto config = ParseRmpConfig(kCommandsTestConfig, "test");
+  ASSERT_TRUE(config.ok()) << config.status().ToString();
+  o.config = *config;
+  auto track = ParseTrackYaml(kCommandsTestTrack, "test-track");
+  ASSERT_TRUE(track.ok()) << track.status().ToString();
+  o.track = *track;
+  o.png = (dir_ / "no-such-folder" / "run.png").string();
+  auto res = RunSimulation(o);
+  ASSERT_TRUE(res.ok()) << res.status().ToString();
+  EXPECT_FALSE(res->output_status.ok());
+  EXPECT_NE(res->output_status.message().find("run.png"), std::string::npos) << res->output_status.ToString();
+  EXPECT_GT(res->report.frames, 0u);
+  EXPECT_EQ(res->report.end, "finished");
+  EXPECT_FALSE(res->report.extra.contains("png"));
+}
+
+// The recording could not be finished (its folder went away at the end of the run): it is not reported
+// as written, and its CAN log is not copied to --can-log.
+TEST_F(RmpCommandsTest, SimFailedRecordingIsNotReportedNorCopied) {
+  SimRunOptions o;
+  auto config = ParseRmpConfig(kCommandsTestConfig, "test");
+  ASSERT_TRUE(config.ok()) << config.status().ToString();
+  o.config = *config;
+  auto track = ParseTrackYaml(kCommandsTestTrack, "test-track");
+  ASSERT_TRUE(track.ok()) << track.status().ToString();
+  o.track = *track;
+  o.record_dir = (dir_ / "rec").string();
+  o.can_log = (dir_ / "can.log").string();
+  o.on_tick = [&o](const TickRecord&, SimWorld&, const ControlLoop& loop) {
+    if (loop.finished()) fs::remove_all(o.record_dir);
+  };
+  auto res = RunSimulation(o);
+  ASSERT_TRUE(res.ok()) << res.status().ToString();
+  EXPECT_FALSE(res->output_status.ok());
+  EXPECT_EQ(res->report.end, "finished");
+  EXPECT_FALSE(res->report.extra.contains("record")) << res->report.ToJson().dump();
+  EXPECT_FALSE(res->report.extra.contains("can_log")) << res->report.ToJson().dump();
+  EXPECT_FALSE(fs::exists(o.can_log));
+}
+
+TEST_F(RmpCommandsTest, SimRefusesBadNumbersNamingTheOption) {
+  for (const char* value : {"inf", "-5", "0", "nan", "1e9"}) {
+    const auto [rc, err] = RunCapturingErrors({"sim", "--track", track_, "--max-time-s", value});
+    EXPECT_EQ(rc, 2) << value;
+    EXPECT_NE(err.find("--max-time-s"), std::string::npos) << value << ": " << err;
+  }
+  for (const char* value : {"-1", "nan", "0", "5", "inf"}) {
+    const auto [rc, err] = RunCapturingErrors({"sim", "--track", track_, "--speed-mps", value});
+    EXPECT_EQ(rc, 2) << value;
+    EXPECT_NE(err.find("--speed-mps"), std::string::npos) << value << ": " << err;
+    EXPECT_EQ(err.find(track_), std::string::npos) << value << ": the track file is not at fault: " << err;
+  }
+}
+
+TEST_F(RmpCommandsTest, ReplayRefusesACanLogThatIsPartOfTheLog) {
+  const std::string rec = Record("rec");
+  const std::string can = rec + "/can.log";
+  const std::string recorded = Read(can);
+  ASSERT_FALSE(recorded.empty());
+  EXPECT_EQ(Run({"replay", rec, "--can-log", can}), 2);
+  EXPECT_EQ(Run({"replay", rec, "--can-log", rec + "/new.log"}), 2) << "a new file inside the log";
+  EXPECT_EQ(Run({"replay", rec, "--can-log", rec}), 2);
+  fs::create_symlink(can, dir_ / "can-link.log");
+  EXPECT_EQ(Run({"replay", rec, "--can-log", (dir_ / "can-link.log").string()}), 2);
+  fs::create_hard_link(can, dir_ / "can-hard.log");
+  EXPECT_EQ(Run({"replay", rec, "--can-log", (dir_ / "can-hard.log").string()}), 2);
+  EXPECT_EQ(Read(can), recorded);
+  // A file in one of the log's subfolders (its images), through a hard link outside the log.
+  std::string image;
+  for (const auto& entry : fs::directory_iterator(fs::path(rec) / "images")) {
+    if (entry.is_regular_file()) image = entry.path().string();
+  }
+  ASSERT_FALSE(image.empty()) << "no images in " << rec;
+  const std::string pixels = Read(image);
+  fs::create_hard_link(image, dir_ / "image-hard.png");
+  const auto [rc, err] = RunCapturingErrors({"replay", rec, "--can-log", (dir_ / "image-hard.png").string()});
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(err.find("same file as the input"), std::string::npos) << err;
+  EXPECT_EQ(Read(image), pixels);
+  EXPECT_FALSE(fs::exists(rec + "/new.log"));
+  EXPECT_EQ(Run({"replay", rec, "--can-log", (dir_ / "replayed.log").string()}), 0);
+  EXPECT_TRUE(fs::exists(dir_ / "replayed.log"));
+}
+
+// The command frames (id kRmpIdCommand) of a replayed driver's CAN log, with their times.
+std::vector<std::pair<int64_t, RmpCommandFrame>> CommandFrames(const std::string& can_log) {
+  std::vector<std::pair<int64_t, RmpCommandFrame>> out;
+  auto frames = replay::ReadCandumpFile(can_log);
+  EXPECT_TRUE(frames.ok()) << frames.status().ToString();
+  if (!frames.ok()) return out;
+  for (const replay::CandumpRecord& r : *frames) {
+    if (r.frame.id != kRmpIdCommand) continue;
+    auto cmd = DecodeCommandFrame(r.frame);
+    EXPECT_TRUE(cmd.ok()) << cmd.status().ToString();
+    if (cmd.ok()) out.emplace_back(r.frame.timestamp_ns, *cmd);
+  }
+  return out;
+}
+
+TEST_F(RmpCommandsTest, ReplayStopsWhenAskedAndCommandsZero) {
+  const std::string rec = Record("rec");
+  // The whole log, for the number of commands an unstopped replay sends.
+  ReplayOptions whole;
+  whole.dir = rec;
+  whole.can_log = (dir_ / "whole.log").string();
+  auto unstopped = RunReplay(whole);
+  ASSERT_TRUE(unstopped.ok()) << unstopped.status().ToString();
+  const std::size_t unstopped_commands = CommandFrames(whole.can_log).size();
+
+  std::atomic<bool> stop{false};
+  ReplayOptions o;
+  o.dir = rec;
+  o.can_log = (dir_ / "replayed.log").string();
+  o.stop = &stop;
+  uint64_t ticks = 0;
+  bool moving = false;
+  int64_t previous_t_ns = -1, stop_t_ns = -1, period_ns = 0;
+  o.on_tick = [&](const TickRecord& tick) {
+    ++ticks;
+    if (tick.speed_mps != 0.0) moving = true;
+    if (moving && ticks >= 40 && stop_t_ns < 0) {  // while the vehicle drives
+      stop.store(true);
+      stop_t_ns = tick.t_ns;
+      period_ns = tick.t_ns - previous_t_ns;
+    }
+    previous_t_ns = tick.t_ns;
+  };
+  auto res = RunReplay(o);
+  ASSERT_TRUE(res.ok()) << res.status().ToString();
+  EXPECT_TRUE(moving);
+  ASSERT_GE(stop_t_ns, 0);
+  ASSERT_GT(period_ns, 0);
+  EXPECT_EQ(res->report.end, "stopped");
+  EXPECT_FALSE(res->report.completed);
+  EXPECT_EQ(res->ticks_compared, ticks);
+  // What it compared, it reproduced: the stop's zero commands are not compared with the recording's.
+  EXPECT_EQ(res->report.extra.value("commands_reproduced", false), true) << res->report.ToJson().dump();
+  EXPECT_TRUE(res->report.extra.contains("comparison")) << res->report.ToJson().dump();
+  EXPECT_FALSE(unstopped->report.extra.contains("comparison"));
+  // Moving commands before the stop, only zero ones a control period after it, and the replay ended early.
+  const auto commands = CommandFrames(o.can_log);
+  ASSERT_FALSE(commands.empty());
+  bool moved = false;
+  for (const auto& [t_ns, cmd] : commands) {
+    if (t_ns <= stop_t_ns) {
+      moved = moved || cmd.velocity_counts != 0;
+      continue;
+    }
+    if (t_ns <= stop_t_ns + period_ns) continue;
+    EXPECT_EQ(cmd.velocity_counts, 0) << "at " << t_ns << " ns, the stop at " << stop_t_ns << " ns";
+    EXPECT_EQ(cmd.turn_counts, 0) << "at " << t_ns << " ns, the stop at " << stop_t_ns << " ns";
+  }
+  EXPECT_TRUE(moved);
+  EXPECT_LT(commands.size(), unstopped_commands);
+
+  // A stop before the first tick: nothing replayed.
+  stop.store(true);
+  o.on_tick = nullptr;
+  o.can_log.clear();
+  auto early = RunReplay(o);
+  ASSERT_TRUE(early.ok()) << early.status().ToString();
+  EXPECT_EQ(early->report.end, "stopped");
+  EXPECT_EQ(early->ticks_compared, 0u);
+}
+
+TEST_F(RmpCommandsTest, RunWithReplayBackendRefusesRecord) {
+  const std::string rec = Record("rec");
+  const std::string cfg = Write("replay.yaml", "backend: replay\nreplay: {dir: " + rec + "}\n");
+  const auto [rc, err] = RunCapturingErrors({"run", "--config", cfg, "--record", (dir_ / "new").string()});
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(err.find("--record"), std::string::npos) << err;
+  EXPECT_FALSE(fs::exists(dir_ / "new"));
+  EXPECT_EQ(Run({"run", "--config", cfg}), 0);
+}
+
+TEST_F(RmpCommandsTest, RunRefusesAStateDirThatCannotHoldLogs) {
+  const std::string file = Write("state-file", "not a folder\n");
+  const std::string cfg = Write("run.yaml",
+                                std::string(kCommandsTestConfig) + "backend: sim\nsim: {track: " + track_ +
+                                    "}\nrecord: true\nstate_dir: " + file + "\n");
+  const auto [rc, err] = RunCapturingErrors({"run", "--config", cfg});
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(err.find(cfg), std::string::npos) << err;
+  EXPECT_NE(err.find("state_dir"), std::string::npos) << err;
+  EXPECT_EQ(Read(file), "not a folder\n");
+  // --record naming an input.
+  const auto [input_rc, input_err] = RunCapturingErrors({"run", "--config", cfg, "--record", track_});
+  EXPECT_EQ(input_rc, 2);
+  EXPECT_NE(input_err.find("same file as the input"), std::string::npos) << input_err;
+  EXPECT_EQ(Read(track_), kCommandsTestTrack);
+}
+
+}  // namespace
+}  // namespace idi::rmp
