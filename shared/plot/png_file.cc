@@ -1,5 +1,10 @@
 #include "shared/plot/png_file.h"
 
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
 #include <new>
 #include <opencv2/imgcodecs.hpp>
 #include <string_view>
@@ -28,9 +33,14 @@ Result<cv::Mat> ReadImageFile(const std::string& path, int flags) {
     return InvalidArgument(path + ": cannot read the image: OpenCV refused it (" + e.err +
                            "; a corrupt header or an image too large)");
   } catch (const std::bad_alloc&) {
-    return InvalidArgument(path + ": cannot read the image: not enough memory for its pixels");
+    return Internal(path + ": cannot read the image: not enough memory for its pixels");  // a failed run, not bad input
   }
-  if (image.empty()) return InvalidArgument(path + ": cannot read the image (missing file or not an image format)");
+  if (image.empty()) {
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) return NotFound(path + ": cannot read the image: no such file");
+    if (::access(path.c_str(), R_OK) != 0) return IoError(path + ": cannot read the image: " + std::strerror(errno));
+    return InvalidArgument(path + ": cannot read the image (not an image format OpenCV reads, or corrupt)");
+  }
   return image;
 }
 

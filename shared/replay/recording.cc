@@ -1,5 +1,6 @@
 #include "shared/replay/recording.h"
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <limits>
@@ -87,6 +88,10 @@ namespace {
 
 // An integer >= 0 (JSON text reads one as unsigned, code that builds JSON may give it signed).
 bool IsCount(const nlohmann::json& v) {
+  if (v.is_number_float()) {  // 12.0: what replay has always read as 12
+    const double d = v.get<double>();
+    return d >= 0 && d < 9007199254740992.0 && std::floor(d) == d;
+  }
   return v.is_number_unsigned() || (v.is_number_integer() && v.get<int64_t>() >= 0);
 }
 

@@ -92,21 +92,22 @@ int ParseAndRun(CliApp& cli, int argc, char** argv) {
 
 // Whether everything written to stdout reached it: the results of a run whose stdout is a full disk or
 // a closed descriptor are lost, and a script must not take exit 0 for them. A write that failed while
-// the command ran (a flush of a full buffer) leaves the stream's error flag set, and errno its reason
-// unless a later call failed too (then only a reason a write gives is believed); the last one fails here.
+// the command ran leaves the stream's error flag set; its reason is known only when the final flush
+// fails too (errno is long overwritten by then otherwise), and only then is it given.
 int CheckStandardOutput(const std::string& program, int exit_code) {
-  const int earlier = errno;
+  const bool failed_before = std::cout.fail() || std::ferror(stdout);
   errno = 0;
-  std::cout.flush();
+  std::cout.flush();  // synced with stdio: flushes stdout, and fails when that does
+  int error = errno;
+  const bool cout_flushed = !std::cout.fail();
+  errno = 0;
   const bool flushed = std::fflush(stdout) == 0;
-  if (flushed && !std::ferror(stdout) && !std::cout.fail()) return exit_code;
-  int error = errno;  // of the flush that failed: std::cout's flushes stdout
-  if (error == 0) {
-    const bool write_error = earlier == ENOSPC || earlier == EDQUOT || earlier == EFBIG || earlier == EBADF ||
-                             earlier == EPIPE || earlier == EIO;
-    error = write_error ? earlier : EIO;
-  }
-  std::fprintf(stderr, "%s: writing to standard output failed: %s\n", program.c_str(), std::strerror(error));
+  if (!flushed) error = errno;
+  if (flushed && cout_flushed && !std::ferror(stdout)) return exit_code;
+  // A reason only for a write that failed here: one that failed while the command ran left none.
+  const std::string why = !failed_before && error != 0 ? std::string(": ") + std::strerror(error) : std::string();
+  std::fprintf(
+      stderr, "%s: writing to standard output failed%s (the results are incomplete)\n", program.c_str(), why.c_str());
   return exit_code == kExitOk ? kExitFailed : exit_code;
 }
 

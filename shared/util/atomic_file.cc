@@ -8,6 +8,8 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <set>
 #include <sstream>
 #include <vector>
 
@@ -73,15 +75,64 @@ std::string FollowLinks(const std::string& path) {
   return p.string();
 }
 
+// The descriptor a name stands for (/dev/stdout, /dev/stderr, /dev/fd/N, /proc/self/fd/N), or -1.
+// Reopening it by its /proc link would give a new file offset and drop O_APPEND, and its target may
+// not be a name at all ("pipe:[1234]").
+int DescriptorOf(const std::string& path) {
+  if (path == "/dev/stdin") return 0;
+  if (path == "/dev/stdout") return 1;
+  if (path == "/dev/stderr") return 2;
+  for (const std::string prefix : {"/dev/fd/", "/proc/self/fd/"}) {
+    if (path.rfind(prefix, 0) != 0 || path.size() == prefix.size() || path.size() > prefix.size() + 9) continue;
+    const std::string digits = path.substr(prefix.size());
+    if (digits.find_first_not_of("0123456789") != std::string::npos) return -1;
+    return std::stoi(digits);
+  }
+  return -1;
+}
+
+bool WritableDescriptor(int fd) {
+  const int flags = ::fcntl(fd, F_GETFL);
+  return flags >= 0 && (flags & O_ACCMODE) != O_RDONLY;
+}
+
 }  // namespace
+
+std::string OutputTarget(const std::string& path) { return FollowLinks(path); }
+
+std::vector<std::string> UniqueOutputNames(const std::vector<std::string>& paths, const std::string& suffix) {
+  std::vector<std::string> names(paths.size()), stems(paths.size());
+  std::set<std::string> taken;
+  std::map<std::string, int> next;  // per stem, the next number to try
+  for (std::size_t i = 0; i < paths.size(); ++i) {
+    stems[i] = std::filesystem::path(paths[i]).stem().string();
+    if (next.count(stems[i])) continue;
+    next[stems[i]] = 2;
+    names[i] = stems[i] + suffix;
+    taken.insert(names[i]);
+  }
+  for (std::size_t i = 0; i < paths.size(); ++i) {
+    if (!names[i].empty()) continue;
+    int& n = next[stems[i]];
+    do {
+      names[i] = stems[i] + "_" + std::to_string(n++) + suffix;
+    } while (!taken.insert(names[i]).second);
+  }
+  return names;
+}
 
 Status WriteFileAtomically(const std::string& requested, std::string_view contents) {
   namespace fs = std::filesystem;
+  if (const int fd = DescriptorOf(requested); fd >= 0) {
+    if (!WritableDescriptor(fd)) return IoError(requested + ": not open for writing");
+    return WriteAll(fd, contents, requested);
+  }
   const std::string path = FollowLinks(requested);
   struct stat existing {};
-  if (::stat(path.c_str(), &existing) == 0 && !S_ISREG(existing.st_mode)) {
+  // stat of the name asked for: the kernel follows every link, /proc's too.
+  if (::stat(requested.c_str(), &existing) == 0 && !S_ISREG(existing.st_mode)) {
     if (S_ISDIR(existing.st_mode)) return InvalidArgument(requested + ": is a folder, expected a file name");
-    return WriteInPlace(path, contents);
+    return WriteInPlace(requested, contents);
   }
   const fs::path target(path);
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
@@ -125,14 +176,17 @@ Status WriteFileAtomically(const std::string& requested, std::string_view conten
 Status CheckOutputFile(const std::string& path, const std::string& what) {
   namespace fs = std::filesystem;
   if (path.empty()) return Status::Ok();
-  // As WriteFileAtomically will: through a link to its file, and a device or FIFO written in place.
+  // As WriteFileAtomically will: a descriptor, a device or FIFO in place, a link's file.
+  if (const int fd = DescriptorOf(path); fd >= 0) {
+    return WritableDescriptor(fd) ? Status::Ok() : IoError(what + " " + path + ": not open for writing");
+  }
   const fs::path target(FollowLinks(path));
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   std::error_code ec;
-  if (fs::is_directory(target, ec)) return InvalidArgument(what + " " + path + ": is a folder, expected a file name");
+  if (fs::is_directory(path, ec)) return InvalidArgument(what + " " + path + ": is a folder, expected a file name");
   struct stat existing {};
-  if (::stat(target.c_str(), &existing) == 0 && !S_ISREG(existing.st_mode)) {
-    if (::access(target.c_str(), W_OK) != 0) return IoError(what + " " + path + ": cannot write it: " + ErrnoText());
+  if (::stat(path.c_str(), &existing) == 0 && !S_ISREG(existing.st_mode)) {
+    if (::access(path.c_str(), W_OK) != 0) return IoError(what + " " + path + ": cannot write it: " + ErrnoText());
     return Status::Ok();
   }
   if (!fs::is_directory(dir, ec)) return NotFound(what + " " + path + ": folder " + dir.string() + " does not exist");

@@ -2,7 +2,9 @@
 // rename over the target, fsync the folder. A reader sees the old file or the new one, never half.
 // A symbolic link is followed (the file it names is replaced, the link stays), and a target that is
 // not a regular file (/dev/null, a FIFO, a terminal) is written in place: renaming over it would
-// replace the device node or FIFO with a regular file.
+// replace the device node or FIFO with a regular file. /dev/stdout, /dev/stderr, /dev/fd/N and
+// /proc/self/fd/N are written to that descriptor (whatever it is: a pipe, a terminal, a file opened
+// for appending), never renamed over.
 #pragma once
 
 #include <string>
@@ -28,6 +30,15 @@ struct NamedFile {
   std::string option;  // e.g. "--out"
   std::string path;    // empty: not given
 };
+
+// The file WriteFileAtomically(path) replaces: the end of path's symbolic links (path itself when it is
+// not one). For writers that rename a file of their own over an output.
+std::string OutputTarget(const std::string& path);
+
+// One output name per input path: <stem><suffix> for the first path of each stem, and
+// <stem>_<n><suffix> (n = 2, 3, ...) for the others (a/cam.png, b/cam.png), skipping names that are
+// taken, so that an input whose stem is unique always gets <stem><suffix>.
+std::vector<std::string> UniqueOutputNames(const std::vector<std::string>& paths, const std::string& suffix);
 
 // Whether two paths name one file: the same inode when both exist, else the same absolute path once
 // the symbolic links of its existing part are resolved.

@@ -1,7 +1,9 @@
 #include "shared/util/atomic_file.h"
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <filesystem>
 
@@ -114,6 +116,44 @@ TEST_F(AtomicFileTest, ADeviceIsWrittenInPlace) {
   fs::remove_all(dir_ / "real");
   EXPECT_EQ(CheckOutputFile((dir_ / "x.yaml").string(), "--out").code(), StatusCode::kNotFound)
       << "the link's file's folder is gone";
+}
+
+// /dev/stdout and its kind are the descriptor itself: a pipe gets the bytes (its /proc link reads
+// "pipe:[N]", which was taken for a file name), and a file opened for appending keeps what it had
+// (renaming over it lost the earlier lines).
+TEST_F(AtomicFileTest, ADescriptorIsWrittenNotRenamedOver) {
+  int p[2];
+  ASSERT_EQ(::pipe(p), 0);
+  const std::string to_pipe = "/dev/fd/" + std::to_string(p[1]);
+  EXPECT_TRUE(CheckOutputFile(to_pipe, "--out").ok());
+  ASSERT_TRUE(WriteFileAtomically(to_pipe, "through\n").ok());
+  ::close(p[1]);
+  char buf[32] = {};
+  EXPECT_EQ(::read(p[0], buf, sizeof(buf) - 1), 8);
+  EXPECT_STREQ(buf, "through\n");
+  ::close(p[0]);
+  const std::string log = (dir_ / "log.txt").string();
+  ASSERT_TRUE(WriteFileAtomically(log, "before\n").ok());
+  struct stat before {};
+  ASSERT_EQ(::stat(log.c_str(), &before), 0);
+  const int fd = ::open(log.c_str(), O_WRONLY | O_APPEND);
+  ASSERT_GE(fd, 0);
+  const Status st = WriteFileAtomically("/proc/self/fd/" + std::to_string(fd), "after\n");
+  ::close(fd);
+  ASSERT_TRUE(st.ok()) << st.ToString();
+  EXPECT_EQ(ReadFile(log).value(), "before\nafter\n");
+  struct stat after {};
+  ASSERT_EQ(::stat(log.c_str(), &after), 0);
+  EXPECT_EQ(after.st_ino, before.st_ino) << "the file itself, not a new one renamed over it";
+  const int ro = ::open(log.c_str(), O_RDONLY);
+  EXPECT_EQ(WriteFileAtomically("/dev/fd/" + std::to_string(ro), "x").code(), StatusCode::kIoError);
+  ::close(ro);
+}
+
+TEST_F(AtomicFileTest, OutputNamesAreUniqueAndAUniqueStemKeepsItsName) {
+  EXPECT_EQ(UniqueOutputNames({"x/a.pgm", "y/a.pgm", "a_2.pgm", "b.png", "z/a.png"}, "_f.png"),
+            (std::vector<std::string>{"a_f.png", "a_3_f.png", "a_2_f.png", "b_f.png", "a_4_f.png"}));
+  EXPECT_TRUE(UniqueOutputNames({}, "_f.png").empty());
 }
 
 TEST_F(AtomicFileTest, AnOutputMayNotBeAnInputOrAnotherOutput) {

@@ -211,24 +211,11 @@ void DrawPiece(cv::Mat& img,
   }
 }
 
-// The overlay file of each image: <stem>_features.png, and <stem>_<n>_features.png for the n-th image of
-// that stem (a/cam.png and b/cam.png), skipping a name another image's overlay has. Named before any
-// image is read, so that they can be checked against the inputs and do not depend on which images fail.
+// The overlay file of each image: <stem>_features.png, numbered for images of one stem (a/cam.png and
+// b/cam.png; UniqueOutputNames). Named before any image is read, so that they can be checked against the
+// inputs and do not depend on which images fail.
 std::vector<std::string> OverlayNames(const std::vector<std::string>& images) {
-  std::map<std::string, int> stems;
-  std::set<std::string> taken;
-  std::vector<std::string> names;
-  for (const std::string& path : images) {
-    const std::string stem = std::filesystem::path(path).stem().string();
-    int& n = stems[stem];
-    std::string name;
-    do {
-      ++n;
-      name = (n == 1 ? stem : fmt::format("{}_{}", stem, n)) + "_features.png";
-    } while (!taken.insert(name).second);
-    names.push_back(name);
-  }
-  return names;
+  return UniqueOutputNames(images, "_features.png");
 }
 
 // Where a path leads, for finding the pairs of paths that may be one file: its resolved absolute path,

@@ -76,12 +76,9 @@ Result<std::vector<StructureView>> LoadViews(const std::string& path, std::vecto
     StructureView sv;
     const fs::path image_path = base / v["image"].as<std::string>();
     sv.name = image_path.filename().string();
-    try {
-      sv.image = cv::imread(image_path.string(), cv::IMREAD_GRAYSCALE);
-    } catch (const cv::Exception& e) {  // e.g. a header claiming more pixels than OpenCV will decode
-      return InvalidArgument(where + ": cannot read image " + image_path.string() + ": " + e.what());
-    }
-    if (sv.image.empty()) return InvalidArgument(where + ": cannot read image " + image_path.string());
+    auto image = plot::ReadImageFile(image_path.string(), cv::IMREAD_GRAYSCALE);
+    if (!image.ok()) return Status(image.status().code(), where + ": " + image.status().message());
+    sv.image = std::move(*image);
     if (image_files) image_files->push_back(image_path.string());
     IDI_ASSIGN_OR_RETURN(const auto k, Numbers(v["K"], 9, where + ".K"));
     if (k[1] != 0 || k[3] != 0 || k[6] != 0 || k[7] != 0 || k[8] != 1 || !(k[0] > 0) || !(k[4] > 0)) {
@@ -108,15 +105,13 @@ Result<std::vector<StructureView>> LoadViews(const std::string& path, std::vecto
 }
 
 // Each view's overlay file: <stem>_model.png, views of the same file name (left/0001.png,
-// right/0001.png) numbered <stem>_2_model.png and on.
+// right/0001.png) numbered <stem>_2_model.png and on (UniqueOutputNames).
 std::vector<std::string> OverlayFiles(const std::vector<StructureView>& views, const std::string& dir) {
-  std::map<std::string, int> names;
+  std::vector<std::string> names;
+  for (const StructureView& v : views) names.push_back(v.name);
   std::vector<std::string> files;
-  for (const StructureView& v : views) {
-    const std::string stem = fs::path(v.name).stem().string();
-    const int n = ++names[stem];
-    files.push_back((fs::path(dir) / ((n == 1 ? stem : fmt::format("{}_{}", stem, n)) + "_model.png")).string());
-  }
+  for (const std::string& name : UniqueOutputNames(names, "_model.png"))
+    files.push_back((fs::path(dir) / name).string());
   return files;
 }
 

@@ -129,6 +129,17 @@ Status RunExport(const ExportOptions& o) {
     inputs.push_back({"recorded image", std::move(image)});
   }
   IDI_RETURN_IF_ERROR(CheckDistinctFiles(inputs, {{"OUT", o.out}}, "export-rawlog"));
+  IDI_RETURN_IF_ERROR(CheckOutputFile(o.out, "export-rawlog: OUT"));
+  // The rawlog is written beside its target and renamed over it: a link's file is the target (the
+  // link stays), and a device or FIFO cannot be one.
+  const std::string target = OutputTarget(o.out);
+  std::error_code ec;
+  const auto type = std::filesystem::status(target, ec).type();
+  if (type != std::filesystem::file_type::regular && type != std::filesystem::file_type::not_found) {
+    return InvalidArgument("export-rawlog: OUT " + o.out +
+                           ": not a regular file (a rawlog is written beside it and "
+                           "renamed over it)");
+  }
   std::vector<RawlogFrame> frames;
   for (std::size_t k = 0; k < rec.events.size(); ++k) {
     const nlohmann::json& e = rec.events[k];
@@ -143,7 +154,7 @@ Status RunExport(const ExportOptions& o) {
     frames.push_back(std::move(f));
   }
   if (frames.empty()) return InvalidArgument(o.dir + ": the recording holds no images");
-  IDI_RETURN_IF_ERROR(ExportRawlog(frames, o.out));
+  IDI_RETURN_IF_ERROR(ExportRawlog(frames, target));
   spdlog::info("wrote {} images to {} (open with RawLogViewer or rawlog-edit --info)", frames.size(), o.out);
   return Status::Ok();
 }
