@@ -86,7 +86,7 @@ bool InsideFolder(const std::string& path, const std::string& folder) {
     if (!r.has_filename() && r.has_parent_path()) r = r.parent_path();  // "rec/" names "rec"
     return r;
   };
-  const fs::path f = resolved(folder), p = resolved(path);
+  const fs::path f = resolved(folder), p = resolved(OutputTarget(path));  // a link is written through
   const auto [f_end, p_at] = std::mismatch(f.begin(), f.end(), p.begin(), p.end());
   return f_end == f.end();
 }

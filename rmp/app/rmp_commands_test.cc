@@ -112,6 +112,16 @@ TEST_F(RmpCommandsTest, SimRefusesAnOutputInsideItsRecording) {
       EXPECT_TRUE(fs::is_empty(rec)) << option << " " << out << ": refused before the run";
     }
   }
+  // A link outside the folder to a file the recording will make: written through after the run.
+  const std::string link = (dir_ / "dl.json").string();
+  fs::create_symlink(fs::path(rec) / "recording.json", link);
+  {
+    const auto [rc, err] =
+        RunCapturingErrors({"sim", "--track", track_, "--config", config_, "--record", rec, "--report", link});
+    EXPECT_EQ(rc, 2);
+    EXPECT_NE(err.find("inside"), std::string::npos) << err;
+    EXPECT_TRUE(fs::is_empty(rec)) << "refused before the run";
+  }
   // An output that holds the recording: a new file where the run would make its parent folder.
   const std::string parent = (dir_ / "x").string();
   for (const char* option : {"--png", "--report", "--can-log"}) {

@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -210,37 +211,61 @@ Status CheckOutputFolder(const std::string& path, const std::string& what) {
   return Status::Ok();
 }
 
-bool SameFile(const std::string& a, const std::string& b) {
+namespace {
+
+// What identifies the file a path leads to: its absolute path once every link is resolved (a link to a
+// file not made yet included: the write will follow it), and its device and inode when it exists. Two
+// paths name one file when they share a key.
+std::vector<std::string> FileKeys(const std::string& path) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (fs::exists(a, ec) && fs::exists(b, ec)) {
-    const bool same = fs::equivalent(a, b, ec);
-    if (!ec) return same;
+  const fs::path absolute = fs::absolute(FollowLinks(path), ec);
+  fs::path resolved = fs::weakly_canonical(absolute, ec);
+  if (ec) resolved = absolute.lexically_normal();
+  std::vector<std::string> keys = {"path " + resolved.string()};
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0) {
+    keys.push_back("inode " + std::to_string(st.st_dev) + " " + std::to_string(st.st_ino));
   }
-  const fs::path ca = fs::weakly_canonical(fs::absolute(a, ec), ec);
-  if (ec) return fs::absolute(a, ec).lexically_normal() == fs::absolute(b, ec).lexically_normal();
-  const fs::path cb = fs::weakly_canonical(fs::absolute(b, ec), ec);
-  if (ec) return fs::absolute(a, ec).lexically_normal() == fs::absolute(b, ec).lexically_normal();
-  return ca == cb;
+  return keys;
 }
 
+}  // namespace
+
+bool SameFile(const std::string& a, const std::string& b) {
+  const std::vector<std::string> ka = FileKeys(a), kb = FileKeys(b);
+  return std::any_of(
+      ka.begin(), ka.end(), [&kb](const std::string& k) { return std::find(kb.begin(), kb.end(), k) != kb.end(); });
+}
+
+// Indexed by key rather than compared pair by pair: a command with thousands of images and as many
+// overlays makes a few file-system calls per file, not per pair.
 Status CheckDistinctFiles(const std::vector<NamedFile>& inputs,
                           const std::vector<NamedFile>& outputs,
                           const std::string& command) {
-  for (std::size_t i = 0; i < outputs.size(); ++i) {
-    const NamedFile& out = outputs[i];
+  std::map<std::string, const NamedFile*> input_of, output_of;
+  for (const NamedFile& in : inputs) {
+    if (in.path.empty()) continue;
+    for (std::string& key : FileKeys(in.path)) input_of.emplace(std::move(key), &in);
+  }
+  for (const NamedFile& out : outputs) {
     if (out.path.empty()) continue;
-    for (const NamedFile& in : inputs) {
-      if (in.path.empty() || !SameFile(out.path, in.path)) continue;
+    const std::vector<std::string> keys = FileKeys(out.path);
+    for (const std::string& key : keys) {
+      const auto it = input_of.find(key);
+      if (it == input_of.end()) continue;
+      const NamedFile& in = *it->second;
       return InvalidArgument(command + ": " + out.option + " " + out.path + " is the same file as the input " +
                              in.option + " " + in.path + ": writing it would destroy the input (name another file)");
     }
-    for (std::size_t j = i + 1; j < outputs.size(); ++j) {
-      const NamedFile& other = outputs[j];
-      if (other.path.empty() || !SameFile(out.path, other.path)) continue;
-      return InvalidArgument(command + ": " + out.option + " " + out.path + " and " + other.option + " " + other.path +
+    for (const std::string& key : keys) {
+      const auto it = output_of.find(key);
+      if (it == output_of.end()) continue;
+      const NamedFile& other = *it->second;
+      return InvalidArgument(command + ": " + other.option + " " + other.path + " and " + out.option + " " + out.path +
                              " are the same file: one would replace the other (name two files)");
     }
+    for (const std::string& key : keys) output_of.emplace(key, &out);
   }
   return Status::Ok();
 }

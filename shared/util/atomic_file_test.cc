@@ -179,6 +179,12 @@ TEST_F(AtomicFileTest, AnOutputMayNotBeAnInputOrAnotherOutput) {
   EXPECT_NE(twice.message().find("are the same file"), std::string::npos) << twice.ToString();
   EXPECT_FALSE(SameFile(out, obs));
   EXPECT_TRUE(SameFile(out, out));
+  // A link to a file not made yet is the file it will write (weakly_canonical alone stops at it).
+  fs::create_symlink(dir_ / "later.json", dir_ / "report.json");
+  EXPECT_TRUE(SameFile((dir_ / "report.json").string(), (dir_ / "later.json").string()));
+  EXPECT_FALSE(CheckDistinctFiles(
+                   {}, {{"--out", (dir_ / "later.json").string()}, {"--report", (dir_ / "report.json").string()}}, "c")
+                   .ok());
 }
 
 TEST_F(AtomicFileTest, ReadMissingFileIsNotFound) {

@@ -218,39 +218,13 @@ std::vector<std::string> OverlayNames(const std::vector<std::string>& images) {
   return UniqueOutputNames(images, "_features.png");
 }
 
-// Where a path leads, for finding the pairs of paths that may be one file: its resolved absolute path,
-// and the file's device and inode when it exists.
-std::vector<std::string> FileKeys(const std::string& path) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  fs::path resolved = fs::weakly_canonical(fs::absolute(path, ec), ec);
-  if (ec) resolved = fs::absolute(path, ec).lexically_normal();
-  std::vector<std::string> keys = {"path " + resolved.string()};
-  struct stat st {};
-  if (::stat(path.c_str(), &st) == 0) keys.push_back(fmt::format("inode {} {}", st.st_dev, st.st_ino));
-  return keys;
-}
-
-// CheckDistinctFiles for the overlays against the images and the camera file. It compares every pair,
-// a few file-system calls each: minutes over thousands of images. Only the pairs that may be one file
-// (one resolved path, or one inode) are given to it. The overlays are distinct names in one folder.
+// The overlays may not replace an image or the camera file (nor each other: their names are distinct).
 Status CheckOverlaysAreNotInputs(const FeaturesCliOptions& o, const std::vector<std::string>& overlays) {
   std::vector<NamedFile> inputs = {{"--camera", o.camera_file}};
   for (const std::string& path : o.images) inputs.push_back({"image", path});
-  std::multimap<std::string, std::size_t> input_of_key;
-  for (std::size_t k = 0; k < inputs.size(); ++k) {
-    if (inputs[k].path.empty()) continue;
-    for (std::string& key : FileKeys(inputs[k].path)) input_of_key.emplace(std::move(key), k);
-  }
-  for (const std::string& overlay : overlays) {
-    std::vector<NamedFile> candidates;
-    for (const std::string& key : FileKeys(overlay)) {
-      const auto [begin, end] = input_of_key.equal_range(key);
-      for (auto it = begin; it != end; ++it) candidates.push_back(inputs[it->second]);
-    }
-    IDI_RETURN_IF_ERROR(CheckDistinctFiles(candidates, {{"--overlay", overlay}}, "features"));
-  }
-  return Status::Ok();
+  std::vector<NamedFile> outputs;
+  for (const std::string& overlay : overlays) outputs.push_back({"--overlay", overlay});
+  return CheckDistinctFiles(inputs, outputs, "features");
 }
 
 Status WriteOverlay(const std::string& out,
