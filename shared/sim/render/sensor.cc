@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 
 #include "shared/sim/render/noise_rng.h"
 #include "shared/sim/render/render.h"
@@ -138,6 +139,62 @@ int LeadingRun(const float* in, const uint64_t* w, const RunParams& p, uint8_t* 
   return leading;
 }
 #pragma GCC diagnostic pop
+
+// LeadingRun on AVX2, the eight pixels as two groups of four: the same operations in the same order as
+// LeadingRun, so every value is the same (AVX2 has no 64-bit integer to double conversion; a word's top
+// 53 bits are converted in two exact halves, whose sum is exact below 2^53). Like LeadingRunAvx512 it may
+// write past the leading run.
+[[gnu::target("avx2")]] int LeadingFourAvx2(const float* in, const uint64_t* w, const RunParams& p, uint8_t* out) {
+  const __m256d zero = _mm256_setzero_pd();
+  // std::max(0.0, x): vmaxpd returns its second operand for NaN and for two zeros, as std::max its first.
+  const __m256d v = _mm256_max_pd(_mm256_cvtps_pd(_mm_loadu_ps(in)), zero);
+  __m256d scale = _mm256_set1_pd(p.read_noise_dn);
+  int ok = 0xF;
+  if (p.shot) {
+    ok = _mm256_movemask_pd(_mm256_cmp_pd(v, _mm256_set1_pd(p.many_electrons_dn), _CMP_GT_OQ));
+    scale = _mm256_sqrt_pd(_mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(p.gain), v), _mm256_set1_pd(p.read_var)));
+  }
+  const __m256i words = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(w));
+  const __m256i layer = _mm256_and_si256(words, _mm256_set1_epi64x(127));
+  // double(word >> 11): the high 21 and low 32 bits of the 53, each placed in a double's mantissa.
+  const __m256i top = _mm256_srli_epi64(words, 11);
+  const __m256d lo =
+      _mm256_sub_pd(_mm256_castsi256_pd(_mm256_or_si256(_mm256_and_si256(top, _mm256_set1_epi64x(0xFFFFFFFFLL)),
+                                                        _mm256_set1_epi64x(0x4330000000000000LL))),
+                    _mm256_set1_pd(4503599627370496.0));  // 2^52
+  const __m256d hi = _mm256_sub_pd(
+      _mm256_castsi256_pd(_mm256_or_si256(_mm256_srli_epi64(top, 32), _mm256_set1_epi64x(0x4530000000000000LL))),
+      _mm256_set1_pd(19342813113834066795298816.0));  // 2^84
+  const __m256d top_d = _mm256_add_pd(hi, lo);
+  // SignedOf and NormalInRectangle.
+  const __m256d u =
+      _mm256_sub_pd(_mm256_mul_pd(_mm256_add_pd(top_d, _mm256_set1_pd(0.5)), _mm256_set1_pd(2.0 / 9007199254740992.0)),
+                    _mm256_set1_pd(1.0));
+  const internal::Ziggurat& zig = internal::Zig();
+  const __m256d all = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+  const __m256d abs_u = _mm256_andnot_pd(_mm256_set1_pd(-0.0), u);
+  ok &= _mm256_movemask_pd(_mm256_cmp_pd(abs_u, _mm256_mask_i64gather_pd(zero, zig.ratio, layer, all, 8), _CMP_LT_OQ));
+  const int leading = ok == 0xF ? 4 : __builtin_ctz(~static_cast<unsigned>(ok));
+  if (leading == 0) return 0;
+  const __m256d z = _mm256_mul_pd(u, _mm256_mask_i64gather_pd(zero, zig.x, layer, all, 8));
+  // v + scale z and Finish: the black level, std::clamp to [0, 255] (the values that count are finite)
+  // and RoundHalfEven.
+  __m256d o = _mm256_add_pd(_mm256_add_pd(v, _mm256_mul_pd(scale, z)), _mm256_set1_pd(p.black_level_dn));
+  o = _mm256_min_pd(_mm256_max_pd(o, zero), _mm256_set1_pd(255.0));
+  const __m256d round = _mm256_set1_pd(6755399441055744.0);
+  o = _mm256_sub_pd(_mm256_add_pd(o, round), round);
+  const __m128i i32 = _mm256_cvttpd_epi32(o);
+  const __m128i bytes = _mm_packus_epi16(_mm_packus_epi32(i32, i32), _mm_setzero_si128());
+  const int packed = _mm_cvtsi128_si32(bytes);
+  std::memcpy(out, &packed, 4);
+  return leading;
+}
+
+[[gnu::target("avx2")]] int LeadingRunAvx2(const float* in, const uint64_t* w, const RunParams& p, uint8_t* out) {
+  const int first = LeadingFourAvx2(in, w, p, out);
+  if (first < 4) return first;
+  return 4 + LeadingFourAvx2(in + 4, w + 4, p, out + 4);
+}
 #endif
 
 }  // namespace
@@ -192,6 +249,7 @@ cv::Mat ApplySensor(const cv::Mat& irradiance_dn, const SensorOptions& sensor, u
   };
 #if defined(__x86_64__)
   static const bool avx512 = __builtin_cpu_supports("avx512f") != 0 && __builtin_cpu_supports("avx512dq") != 0;
+  static const bool avx2 = __builtin_cpu_supports("avx2") != 0;
 #endif
   for (int r = 0; r < irradiance_dn.rows; ++r) {
     const float* in = irradiance_dn.ptr<float>(r);
@@ -205,7 +263,9 @@ cv::Mat ApplySensor(const cv::Mat& irradiance_dn, const SensorOptions& sensor, u
       while (k + kRun <= n) {
         const uint64_t* w = words.Peek(kRun);
 #if defined(__x86_64__)
-        const int done = avx512 ? LeadingRunAvx512(in + k, w, params, o + k) : LeadingRun(in + k, w, params, o + k);
+        const int done = avx512 ? LeadingRunAvx512(in + k, w, params, o + k)
+                         : avx2 ? LeadingRunAvx2(in + k, w, params, o + k)
+                                : LeadingRun(in + k, w, params, o + k);
 #else
         const int done = LeadingRun(in + k, w, params, o + k);
 #endif

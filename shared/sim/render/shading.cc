@@ -351,10 +351,24 @@ IDI_AVX2 __m256d Max(__m256d a, __m256d b) { return _mm256_blendv_pd(a, b, _mm25
       const __m128i i1 = _mm_slli_epi32(_mm_and_si128(_mm_add_epi32(ix, _mm_set1_epi32(1)), mask), 8);
       const __m128i j0 = _mm_and_si128(iy, mask);
       const __m128i j1 = _mm_and_si128(_mm_add_epi32(iy, _mm_set1_epi32(1)), mask);
-      const __m256d a = Gather(lattice, _mm_add_epi32(i0, j0));
-      const __m256d b = Gather(lattice, _mm_add_epi32(i1, j0));
-      const __m256d c = Gather(lattice, _mm_add_epi32(i0, j1));
-      const __m256d d = Gather(lattice, _mm_add_epi32(i1, j1));
+      __m256d a, b, c, d;
+      const __m128i same_cell =
+          _mm_and_si128(_mm_cmpeq_epi32(ix, _mm_shuffle_epi32(ix, 0)), _mm_cmpeq_epi32(iy, _mm_shuffle_epi32(iy, 0)));
+      if (_mm_movemask_epi8(same_cell) == 0xFFFF) {
+        // The four points in one lattice cell (the common case for the coarser octaves): its corners
+        // loaded once each.
+        const int c00 = _mm_cvtsi128_si32(_mm_add_epi32(i0, j0)), c10 = _mm_cvtsi128_si32(_mm_add_epi32(i1, j0));
+        const int c01 = _mm_cvtsi128_si32(_mm_add_epi32(i0, j1)), c11 = _mm_cvtsi128_si32(_mm_add_epi32(i1, j1));
+        a = _mm256_broadcast_sd(lattice + c00);
+        b = _mm256_broadcast_sd(lattice + c10);
+        c = _mm256_broadcast_sd(lattice + c01);
+        d = _mm256_broadcast_sd(lattice + c11);
+      } else {
+        a = Gather(lattice, _mm_add_epi32(i0, j0));
+        b = Gather(lattice, _mm_add_epi32(i1, j0));
+        c = Gather(lattice, _mm_add_epi32(i0, j1));
+        d = Gather(lattice, _mm_add_epi32(i1, j1));
+      }
       const __m256d tx = Quintic4(_mm256_sub_pd(nx, fx)), ty = Quintic4(_mm256_sub_pd(ny, fy));
       const __m256d ab = _mm256_add_pd(a, _mm256_mul_pd(_mm256_sub_pd(b, a), tx));
       const __m256d cd = _mm256_add_pd(c, _mm256_mul_pd(_mm256_sub_pd(d, c), tx));
