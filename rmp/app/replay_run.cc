@@ -1,5 +1,6 @@
 #include "rmp/app/replay_run.h"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -8,7 +9,6 @@
 
 #include "rmp/segway/rmp_codec.h"
 #include "shared/replay/can_log_bus.h"
-#include "shared/replay/drive_log.h"
 
 namespace idi::rmp {
 namespace {
@@ -44,9 +44,20 @@ class LogFrames final : public FrameSource {
 
 Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   IDI_ASSIGN_OR_RETURN(const replay::DriveLog log, replay::ReadDriveLog(o.dir));
+  return RunReplay(o, log);
+}
+
+Result<ReplayResult> RunReplay(const ReplayOptions& o, const replay::DriveLog& log) {
   const nlohmann::json& meta = log.recording.header.meta;
+  const std::string header_path = o.dir + "/recording.json";
   if (log.ticks.empty()) return InvalidArgument(o.dir + ": the drive log has no control ticks");
   if (log.can.empty()) return InvalidArgument(o.dir + ": the drive log's can.log is empty");
+  // A recording cut by a power loss replays up to the tear.
+  if (log.recording.truncated) {
+    spdlog::warn("{}/events.jsonl:{}: the last line has no newline (the recorder stopped mid-line?); skipped",
+                 o.dir,
+                 log.recording.truncated_line);
+  }
   if (!log.can_torn_last_line.empty()) {
     spdlog::warn("{}: can.log ends in a line without its newline (the recorder stopped mid-line?); dropped: '{}'",
                  o.dir,
@@ -54,32 +65,36 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   }
   // The pipeline as it was configured when the log was recorded.
   RmpConfig config = DefaultRmpConfig();
-  if (!meta.is_null() && !meta.is_object()) return InvalidArgument(o.dir + "/recording.json: meta must be an object");
+  if (!meta.is_null() && !meta.is_object()) return InvalidArgument(header_path + ": meta must be an object");
   // A number of the recording's metadata, when it is there.
   auto meta_number = [&](const char* key) -> Result<std::optional<double>> {
     if (!meta.is_object() || !meta.contains(key)) return std::optional<double>();
-    if (!meta[key].is_number()) return InvalidArgument(o.dir + "/recording.json: meta." + key + " must be a number");
+    if (!meta[key].is_number()) return InvalidArgument(header_path + ": meta." + key + " must be a number");
     return std::optional<double>(meta[key].get<double>());
   };
   if (meta.is_object() && meta.contains("config_yaml")) {
-    if (!meta["config_yaml"].is_string())
-      return InvalidArgument(o.dir + "/recording.json: meta.config_yaml must be a string");
+    if (!meta["config_yaml"].is_string()) return InvalidArgument(header_path + ": meta.config_yaml must be a string");
     const std::string config_yaml = meta["config_yaml"].get<std::string>();
     if (!config_yaml.empty()) {
-      IDI_ASSIGN_OR_RETURN(config, ParseRmpConfig(config_yaml, o.dir + "/recording.json (config_yaml)"));
+      IDI_ASSIGN_OR_RETURN(config, ParseRmpConfig(config_yaml, header_path + " (config_yaml)"));
     }
   }
   IDI_ASSIGN_OR_RETURN(const std::optional<double> cruise, meta_number("cruise_speed_mps"));
   IDI_ASSIGN_OR_RETURN(const std::optional<double> tape_width, meta_number("tape_width_m"));
+  // A value the options refuse is the recording's: its file and key start the message.
   if (cruise) {
     config.planner.cruise_speed_mps = *cruise;
     config.planner.max_speed_mps = std::max(config.planner.max_speed_mps, config.planner.cruise_speed_mps);
+    IDI_RETURN_IF_ERROR(
+        config.planner.Check().WithContext(fmt::format("{}: meta.cruise_speed_mps {}", header_path, *cruise)));
   }
   if (tape_width) {
     config.perception.tape.SetTapeWidth(*tape_width);
+    IDI_RETURN_IF_ERROR(
+        config.perception.Check().WithContext(fmt::format("{}: meta.tape_width_m {}", header_path, *tape_width)));
   }
-  IDI_RETURN_IF_ERROR(config.planner.Check());
-  IDI_RETURN_IF_ERROR(config.perception.Check());
+  IDI_RETURN_IF_ERROR(config.planner.Check().WithContext(header_path));
+  IDI_RETURN_IF_ERROR(config.perception.Check().WithContext(header_path));
   IDI_ASSIGN_OR_RETURN(std::unique_ptr<TrackPerception> perception,
                        TrackPerception::Create(config.rig, config.perception));
 
@@ -122,21 +137,28 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
       break;
     }
     // The recorded run's schedule: its start and every move after a late tick.
+    const std::string where = fmt::format("{}/events.jsonl:{}", o.dir, want.line);
     if (driver->next_send_ns() != want.t_ns) {
+      // ReadDriveLog refused ticks out of order: a tick before now is the replay's fault.
       const Status st = driver->ResyncSchedule(want.t_ns);
-      if (!st.ok()) return Internal(o.dir + ": the log's ticks are out of order: " + st.message());
+      if (!st.ok()) return Internal(where + ": the replay cannot tick at the log's time: " + st.message());
       ++result.ticks_resynced;
     }
     IDI_ASSIGN_OR_RETURN(const TickRecord got, loop.Step());
     if (got.t_ns != want.t_ns) {
-      return Internal(o.dir + ": replay tick at " + std::to_string(got.t_ns) + " ns, the log's at " +
+      return Internal(where + ": replay tick at " + std::to_string(got.t_ns) + " ns, the log's at " +
                       std::to_string(want.t_ns) + " ns (the driver's schedule differs from the recording)");
     }
     ++result.ticks_compared;
     const double dv = std::abs(got.speed_mps - want.speed_mps), dw = std::abs(got.yaw_rate_rps - want.yaw_rate_rps);
     result.max_speed_difference_mps = std::max(result.max_speed_difference_mps, dv);
     result.max_yaw_rate_difference_rps = std::max(result.max_yaw_rate_difference_rps, dw);
-    if (dv < 1e-6 && dw < 1e-6 && want.decision == DecisionName(got.decision)) ++result.ticks_matching;
+    if (dv < 1e-6 && dw < 1e-6 && want.decision == DecisionName(got.decision)) {
+      ++result.ticks_matching;
+    } else if (result.first_tick_difference_line == 0) {
+      result.first_tick_difference_s = static_cast<double>(want.t_ns - log.ticks.front().t_ns) * 1e-9;
+      result.first_tick_difference_line = want.line;
+    }
     if (got.perceived && loop.last_perception() != nullptr && !loop.last_perception()->observation.pieces.empty())
       ++pairs_with_track;
     if (got.speed_mps != 0.0 || got.yaw_rate_rps != 0.0) moving = true;
@@ -148,14 +170,18 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
       ++lat_n;
     }
   }
-  // The recorded run's own shutdown frames follow; replay them too.
+  // The recorded run's own shutdown frames follow; replay them too. A log cut at a torn line (a power
+  // loss) has none: its can.log goes on with the frames of the ticks after the tear, so the replay's own
+  // shutdown is not compared.
+  const bool cut = log.recording.truncated && !stopped;
+  const std::size_t sent_before_shutdown = bus.sent().size();
   const Status shutdown = loop.Shutdown();
   if (!shutdown.ok()) spdlog::warn("replay: driver shutdown: {}", shutdown.ToString());
 
-  // The driver's frames against the log's, in order (after a stop, those before it).
+  // The driver's frames against the log's, in order (after a stop or at a tear, those before it).
   const std::vector<hal::CanFrame>& sent = bus.sent();
   const std::vector<hal::CanFrame>& logged = bus.logged_transmitted();
-  const std::size_t n = std::min(stopped ? sent_before_stop : sent.size(), logged.size());
+  const std::size_t n = std::min(stopped ? sent_before_stop : cut ? sent_before_shutdown : sent.size(), logged.size());
   for (std::size_t i = 0; i < n; ++i) {
     ++result.can_frames_compared;
     if (sent[i].id == logged[i].id && sent[i].dlc == logged[i].dlc && sent[i].data == logged[i].data &&
@@ -202,13 +228,43 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o) {
   r.extra["max_speed_difference_mps"] = result.max_speed_difference_mps;
   r.extra["max_yaw_rate_difference_rps"] = result.max_yaw_rate_difference_rps;
   if (stopped) r.extra["comparison"] = "up to the stop (the ticks and CAN frames before it)";
-  r.extra["commands_reproduced"] =
-      result.ticks_matching == result.ticks_compared && result.can_frames_matching == result.can_frames_compared;
+  if (cut) {
+    r.extra["comparison"] = fmt::format("up to the torn line {} of events.jsonl (the ticks and CAN frames before it)",
+                                        log.recording.truncated_line);
+  }
+  r.extra["commands_reproduced"] = result.commands_reproduced();
+  if (result.first_tick_difference_line > 0) {
+    r.extra["first_tick_difference_s"] = result.first_tick_difference_s;
+    r.extra["first_tick_difference_line"] = result.first_tick_difference_line;
+  }
   if (can_out) {
     IDI_RETURN_IF_ERROR(can_out->Close());
     r.extra["can_log"] = o.can_log;
   }
   return result;
+}
+
+std::string ReplayComparisonSummary(const ReplayResult& r) {
+  const uint64_t ticks_differing = r.ticks_compared - r.ticks_matching;
+  const uint64_t frames_differing = r.can_frames_compared - r.can_frames_matching;
+  if (r.commands_reproduced()) {
+    return fmt::format("commands reproduced: yes ({} ticks and {} CAN frames compared, all as recorded)",
+                       r.ticks_compared,
+                       r.can_frames_compared);
+  }
+  std::string why;
+  if (ticks_differing > 0) {
+    why = fmt::format("{} of {} ticks differ, first at t={:.3f} s, events.jsonl line {}",
+                      ticks_differing,
+                      r.ticks_compared,
+                      r.first_tick_difference_s,
+                      r.first_tick_difference_line);
+  }
+  if (frames_differing > 0) {
+    why +=
+        fmt::format("{}{} of {} CAN frames differ", why.empty() ? "" : "; ", frames_differing, r.can_frames_compared);
+  }
+  return "commands reproduced: no (" + why + ")";
 }
 
 }  // namespace idi::rmp

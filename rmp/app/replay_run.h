@@ -9,6 +9,7 @@
 #include <string>
 
 #include "rmp/app/sim_run.h"
+#include "shared/replay/drive_log.h"
 
 namespace idi::rmp {
 
@@ -27,8 +28,24 @@ struct ReplayResult {
   uint64_t ticks_resynced = 0;  // ticks whose time the driver's schedule did not give (a late tick on the vehicle)
   uint64_t can_frames_compared = 0, can_frames_matching = 0;
   double max_speed_difference_mps = 0.0, max_yaw_rate_difference_rps = 0.0;
+  // The first tick whose command differs from the recorded one: its time from the first tick (the "t="
+  // of the loop's messages) and its line in events.jsonl (-1 and 0: none).
+  double first_tick_difference_s = -1.0;
+  int first_tick_difference_line = 0;
+
+  // Every compared tick and CAN frame as recorded.
+  bool commands_reproduced() const {
+    return ticks_matching == ticks_compared && can_frames_matching == can_frames_compared;
+  }
 };
 
+// Reads the drive log options.dir and replays it.
 Result<ReplayResult> RunReplay(const ReplayOptions& options);
+// Replays a drive log already read from options.dir.
+Result<ReplayResult> RunReplay(const ReplayOptions& options, const replay::DriveLog& log);
+
+// The text summary of the comparison: "commands reproduced: yes (...)" or "commands reproduced: no (N of
+// M ticks differ, first at t=... s, events.jsonl line L; ...)".
+std::string ReplayComparisonSummary(const ReplayResult& result);
 
 }  // namespace idi::rmp

@@ -2,16 +2,20 @@
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <csignal>
+#include <cstring>
 #include <ctime>
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <set>
 #include <vector>
 
 #include "rmp/app/hardware_run.h"
@@ -129,11 +133,27 @@ std::vector<NamedFile> DriveLogFiles(const std::string& dir) {
   return files;
 }
 
-// `replay`'s output against its input: the CAN log it writes must not be one of the log's files.
-Status CheckReplayFiles(const ReplayOptions& o) {
+// `replay`'s output against its input: the CAN log it writes must not be one of the log's files, nor
+// one of the files the reader reads through a link (an images/ that links to another folder), nor lie
+// in a folder of the log's images.
+Status CheckReplayFiles(const ReplayOptions& o, const replay::DriveLog& log) {
   if (o.can_log.empty()) return Status::Ok();
-  IDI_RETURN_IF_ERROR(CheckOutsideFolder({{"--can-log", o.can_log}}, {"DIR", o.dir}, "replay"));
-  IDI_RETURN_IF_ERROR(CheckDistinctFiles(DriveLogFiles(o.dir), {{"--can-log", o.can_log}}, "replay"));
+  const std::vector<NamedFile> outputs = {{"--can-log", o.can_log}};
+  IDI_RETURN_IF_ERROR(CheckOutsideFolder(outputs, {"DIR", o.dir}, "replay"));
+  std::vector<NamedFile> inputs = DriveLogFiles(o.dir);
+  const std::filesystem::path dir(o.dir);
+  for (const char* file : {"recording.json", "events.jsonl", replay::kDriveLogCanFile})
+    inputs.push_back({"drive log file", (dir / file).string()});
+  std::set<std::string> image_folders;
+  for (const replay::DriveFrameRecord& frame : log.frames) {
+    IDI_ASSIGN_OR_RETURN(std::string image, RecordedImagePath(log.recording, log.recording.events[frame.event]));
+    image_folders.insert(std::filesystem::path(image).parent_path().string());
+    inputs.push_back({"recorded image", std::move(image)});
+  }
+  IDI_RETURN_IF_ERROR(CheckDistinctFiles(inputs, outputs, "replay"));
+  for (const std::string& folder : image_folders) {
+    IDI_RETURN_IF_ERROR(CheckOutsideFolder(outputs, {"images folder", folder}, "replay"));
+  }
   return BeforeTheRun(CheckOutputFile(o.can_log, "--can-log"));
 }
 
@@ -198,23 +218,88 @@ Status RunSimCli(const SimCli& o) {
   return Status::Ok();
 }
 
-std::string LogDirName(const std::string& state_dir) {
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  localtime_r(&now, &tm);
-  char buf[64];
-  std::strftime(buf, sizeof(buf), "%Y%m%d-%H%M%S", &tm);
-  return (std::filesystem::path(state_dir) / "logs" / buf).string();
-}
-
 struct RunCli {
   std::string config, record;
   bool json = false;
 };
 
-// The drive log folder of `run`: --record, else state_dir/logs/<time> when the config says record: true
-// (its logs folder made here). Checked before the run; empty: none.
-Result<std::string> RunRecordFolder(const RunCli& o, const RmpConfig& config) {
+// The drive log folder of `run`, made before the service says it is ready. `made`: by this run (removed
+// again when the run leaves it empty, so that a service systemd restarts does not leave one per attempt).
+struct RecordFolder {
+  std::string path;  // empty: none
+  bool made = false;
+  ~RecordFolder() {
+    std::error_code ec;
+    if (made && std::filesystem::is_empty(path, ec) && !ec) std::filesystem::remove(path, ec);
+  }
+  RecordFolder() = default;
+  RecordFolder(const RecordFolder&) = delete;
+  RecordFolder& operator=(const RecordFolder&) = delete;
+};
+
+// --record: a new or empty folder, made here (its parents too). One that holds files or cannot be made is
+// the command line's fault (exit 2), told before the run rather than when the recorder starts.
+Status MakeRecordFolder(const std::string& path, RecordFolder* folder) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) {
+    if (!fs::is_empty(path, ec) || ec) {
+      return InvalidArgument("run: --record " + path +
+                             ": the folder is not empty (a drive log needs a new or empty one)");
+    }
+  } else if (fs::create_directories(path, ec); ec || !fs::is_directory(path, ec)) {
+    std::error_code link_ec;
+    const std::string why = fs::is_symlink(path, link_ec)
+                                ? "it is a link to " + fs::read_symlink(path, link_ec).string() + ", not to a folder"
+                            : ec ? ec.message()
+                                 : std::string("something else is there");
+    return InvalidArgument("run: --record " + path + ": cannot make the folder: " + why);
+  } else {
+    folder->made = true;
+  }
+  folder->path = path;
+  return Status::Ok();
+}
+
+// state_dir/logs/<local time to the second>, or <time>-2, -3, ... when that is taken: made with mkdir,
+// which only one process succeeds in, so that two runs started within a second never share a folder.
+Status MakeLogFolder(const RunCli& o, const RmpConfig& config, RecordFolder* folder) {
+  const std::string logs = (std::filesystem::path(config.state_dir) / "logs").string();
+  std::error_code ec;
+  std::filesystem::create_directories(logs, ec);
+  if (ec) {
+    return InvalidArgument(o.config + ": state_dir " + config.state_dir + ": cannot make " + logs +
+                           " for record: true: " + ec.message());
+  }
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  localtime_r(&now, &tm);
+  char buf[64];
+  std::strftime(buf, sizeof(buf), "%Y%m%d-%H%M%S", &tm);
+  const std::string base = (std::filesystem::path(logs) / buf).string();
+  constexpr int kMaxTries = 1000;
+  for (int n = 1; n <= kMaxTries; ++n) {
+    const std::string path = n == 1 ? base : fmt::format("{}-{}", base, n);
+    if (::mkdir(path.c_str(), 0755) == 0) {
+      folder->path = path;
+      folder->made = true;
+      return Status::Ok();
+    }
+    if (errno != EEXIST) {
+      return InvalidArgument(o.config + ": state_dir " + config.state_dir + " (record: true): cannot make " + path +
+                             ": " + std::strerror(errno));
+    }
+  }
+  return InvalidArgument(fmt::format("{}: state_dir {} (record: true): {} and {} more drive logs of this second exist",
+                                     o.config,
+                                     config.state_dir,
+                                     base,
+                                     kMaxTries - 1));
+}
+
+// The drive log folder of `run`: --record, else state_dir/logs/<time> when the config says record: true.
+// Checked and made before the run (and before READY=1); none when folder->path stays empty.
+Status RunRecordFolder(const RunCli& o, const RmpConfig& config, RecordFolder* folder) {
   if (config.backend == Backend::kReplay) {
     // The replay drives nothing: its drive log is replay.dir. Its report is the output.
     if (!o.record.empty()) {
@@ -225,35 +310,26 @@ Result<std::string> RunRecordFolder(const RunCli& o, const RmpConfig& config) {
     }
     if (config.record)
       spdlog::warn("{}: record: true is ignored by the replay backend (its drive log is replay.dir)", o.config);
-    return std::string();
+    return Status::Ok();
   }
   std::vector<NamedFile> inputs = {{"--config", o.config}};
   if (config.backend == Backend::kSim) inputs.push_back({"sim.track", config.sim_track});
   if (!o.record.empty()) {
     IDI_RETURN_IF_ERROR(CheckDistinctFiles(inputs, {{"--record", o.record}}, "run"));
     IDI_RETURN_IF_ERROR(BeforeTheRun(CheckOutputFolder(o.record, "--record")));
-    return o.record;
+    return MakeRecordFolder(o.record, folder);
   }
-  if (!config.record) return std::string();
+  if (!config.record) return Status::Ok();
   if (config.state_dir.empty()) return InvalidArgument(o.config + ": record: true needs state_dir");
-  const std::string record = LogDirName(config.state_dir);
-  const std::string logs = std::filesystem::path(record).parent_path().string();
-  std::error_code ec;
-  std::filesystem::create_directories(logs, ec);
-  if (ec) {
-    return InvalidArgument(o.config + ": state_dir " + config.state_dir + ": cannot make " + logs +
-                           " for record: true: " + ec.message());
-  }
-  if (const Status st = CheckOutputFolder(record, "drive log"); !st.ok()) {
-    return InvalidArgument(o.config + ": state_dir " + config.state_dir + " (record: true): " + st.message());
-  }
-  return record;
+  return MakeLogFolder(o, config, folder);
 }
 
 Status RunService(const RunCli& o) {
   IDI_ASSIGN_OR_RETURN(const RmpConfig config, LoadRmpConfig(o.config));
   IDI_ASSIGN_OR_RETURN(const std::string config_text, ReadFile(o.config));
-  IDI_ASSIGN_OR_RETURN(const std::string record, RunRecordFolder(o, config));
+  RecordFolder record_folder;
+  IDI_RETURN_IF_ERROR(RunRecordFolder(o, config, &record_folder));
+  const std::string& record = record_folder.path;
   const StopOnSignals signals;
   spdlog::info("idi-rmp run: backend {} ({})", BackendName(config.backend), o.config);
   RunReport report;
@@ -332,20 +408,34 @@ void AddReplayCommand(CliApp& cli) {
   auto o = std::make_shared<ReplayOptions>();
   auto json = std::make_shared<bool>(false);
   CLI::App* cmd =
-      cli.AddCommand(&cli.app, "replay", "re-run the pipeline on a drive log and compare the commands", [o, json] {
-        IDI_RETURN_IF_ERROR(CheckReplayFiles(*o));
-        const StopOnSignals signals;
-        ReplayOptions ro = *o;
-        ro.stop = &g_stop;
-        IDI_ASSIGN_OR_RETURN(const ReplayResult res, RunReplay(ro));
-        PrintReport(res.report, *json);
-        if (g_stop.load()) return Cancelled("replay: stopped by a signal (zero commanded)");
-        return Status::Ok();
-      });
+      cli.AddCommand(&cli.app,
+                     "replay",
+                     "re-run the pipeline on a drive log and compare the commands (exit 1 when they differ)",
+                     [o, json] {
+                       IDI_ASSIGN_OR_RETURN(const replay::DriveLog log, replay::ReadDriveLog(o->dir));
+                       IDI_RETURN_IF_ERROR(CheckReplayFiles(*o, log));
+                       const StopOnSignals signals;
+                       ReplayOptions ro = *o;
+                       ro.stop = &g_stop;
+                       IDI_ASSIGN_OR_RETURN(const ReplayResult res, RunReplay(ro, log));
+                       PrintReport(res.report, *json);
+                       const std::string comparison = ReplayComparisonSummary(res);
+                       if (!*json) std::cout << comparison << "\n";
+                       if (g_stop.load()) return Cancelled("replay: stopped by a signal (zero commanded)");
+                       // The replay ran, and its result is that the log is not reproduced: a failed run (exit 1).
+                       if (!res.commands_reproduced())
+                         return FailedPrecondition("replay " + o->dir + ": " + comparison);
+                       return Status::Ok();
+                     });
   cmd->add_option("dir", o->dir, "the drive log folder (idi-rmp sim --record, or the vehicle's state_dir/logs)")
       ->required();
   cmd->add_flag("--json", *json, "print the report as JSON on stdout");
   cmd->add_option("--can-log", o->can_log, "write the replayed driver's CAN frames in candump -l format");
+  cmd->footer(
+      "After the report: \"commands reproduced: yes (...)\", or \"commands reproduced: no (N of M ticks differ, "
+      "first at t=T s, events.jsonl line L; K of F CAN frames differ)\" (JSON: commands_reproduced).\n"
+      "Exit 0: the recorded commands were reproduced; 1: they were not, or the replay failed; 2: a log or option "
+      "it refuses (nothing replayed).");
 }
 
 void AddRunCommand(CliApp& cli) {
@@ -356,7 +446,10 @@ void AddRunCommand(CliApp& cli) {
       });
   cmd->add_option("--config", o->config, "rmp.yaml (e.g. /etc/idi/rmp.yaml)")->required();
   cmd->add_option(
-      "--record", o->record, "write a drive log to this new folder (default: state_dir/logs/<time> if record: true)");
+      "--record",
+      o->record,
+      "write a drive log to this new or empty folder (default: state_dir/logs/<time>, or <time>-2, -3, ... when "
+      "taken, if record: true)");
   cmd->add_flag("--json", o->json, "print the final report as JSON on stdout");
 }
 

@@ -1,7 +1,8 @@
 // idi-rmp's driving commands:
 //   sim     --track TRACK.yaml --json [--record DIR] [--can-log FILE] [--png FILE] [--config FILE]
 //           the closed loop in the twin (DESIGN.md §6)
-//   replay  DIR --json [--can-log FILE]   the pipeline on a drive log
+//   replay  DIR --json [--can-log FILE]   the pipeline on a drive log; exit 1 when its commands differ
+//                                         from the recorded ones
 //   run     --config FILE                 the service: hardware, replay or sim backend from the config
 #pragma once
 

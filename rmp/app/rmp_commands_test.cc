@@ -3,13 +3,23 @@
 #include "rmp/app/rmp_commands.h"
 
 #include <gtest/gtest.h>
+#include <sys/socket.h>
+#include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <ctime>
 #include <filesystem>
+#include <iterator>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -257,6 +267,125 @@ TEST_F(RmpCommandsTest, ReplayRefusesACanLogThatIsPartOfTheLog) {
   EXPECT_TRUE(fs::exists(dir_ / "replayed.log"));
 }
 
+// The log's images behind a link (images/ moved to another disk): the files the reader reads there are
+// the log's as much as those inside DIR.
+TEST_F(RmpCommandsTest, ReplayRefusesACanLogInTheImagesFolderBehindALink) {
+  const std::string rec = Record("rec");
+  const fs::path real_images = dir_ / "real-images";
+  fs::rename(fs::path(rec) / "images", real_images);
+  fs::create_symlink(real_images, fs::path(rec) / "images");
+  std::string image;
+  for (const auto& entry : fs::directory_iterator(real_images)) {
+    if (entry.is_regular_file()) image = entry.path().string();
+  }
+  ASSERT_FALSE(image.empty());
+  const std::string pixels = Read(image);
+  {
+    const auto [rc, err] = RunCapturingErrors({"replay", rec, "--can-log", image});
+    EXPECT_EQ(rc, 2) << err;
+    EXPECT_NE(err.find("same file as the input"), std::string::npos) << err;
+  }
+  EXPECT_EQ(Read(image), pixels);
+  {
+    const std::string inside = (real_images / "new.log").string();
+    const auto [rc, err] = RunCapturingErrors({"replay", rec, "--can-log", inside});
+    EXPECT_EQ(rc, 2) << err;
+    EXPECT_NE(err.find("inside"), std::string::npos) << err;
+    EXPECT_FALSE(fs::exists(inside));
+  }
+  EXPECT_EQ(Run({"replay", rec, "--can-log", (dir_ / "replayed.log").string()}), 0);
+}
+
+// The replay says whether the recorded commands were reproduced, and a log it does not reproduce is a
+// failed run (exit 1), in text and JSON alike.
+TEST_F(RmpCommandsTest, ReplaySaysWhetherTheCommandsWereReproduced) {
+  const std::string rec = Record("rec");
+  auto replay = [this](std::vector<std::string> args) {
+    ::testing::internal::CaptureStdout();
+    const auto [rc, err] = RunCapturingErrors(std::move(args));
+    return std::make_tuple(rc, ::testing::internal::GetCapturedStdout(), err);
+  };
+  {
+    const auto [rc, out, err] = replay({"replay", rec});
+    EXPECT_EQ(rc, 0) << err;
+    EXPECT_NE(out.find("commands reproduced: yes"), std::string::npos) << out;
+  }
+  // One moving tick recorded with another speed.
+  const std::string events_path = rec + "/events.jsonl";
+  std::string events = Read(events_path);
+  int line = 0, changed_line = 0;
+  std::string changed;
+  for (std::size_t start = 0; start < events.size();) {
+    const std::size_t end = events.find('\n', start);
+    ++line;
+    nlohmann::json e = nlohmann::json::parse(events.substr(start, end - start));
+    if (changed_line == 0 && e["type"] == "tick" && e["speed_mps"].get<double>() != 0.0) {
+      e["speed_mps"] = e["speed_mps"].get<double>() + 0.1;
+      changed_line = line;
+      changed += e.dump() + "\n";
+    } else {
+      changed += events.substr(start, end + 1 - start);
+    }
+    start = end + 1;
+  }
+  ASSERT_GT(changed_line, 0) << "no moving tick in " << events_path;
+  ASSERT_TRUE(WriteFileAtomically(events_path, changed).ok());
+  {
+    const auto [rc, out, err] = replay({"replay", rec});
+    EXPECT_EQ(rc, 1) << err;
+    EXPECT_NE(out.find("commands reproduced: no (1 of "), std::string::npos) << out;
+    EXPECT_NE(out.find("ticks differ, first at t="), std::string::npos) << out;
+    EXPECT_NE(out.find("events.jsonl line " + std::to_string(changed_line)), std::string::npos) << out;
+    EXPECT_NE(err.find("commands reproduced: no"), std::string::npos) << err;
+  }
+  {
+    const auto [rc, out, err] = replay({"replay", rec, "--json"});
+    EXPECT_EQ(rc, 1) << err;
+    const nlohmann::json report = nlohmann::json::parse(out);
+    EXPECT_EQ(report.value("commands_reproduced", true), false) << out;
+    EXPECT_EQ(report.value("first_tick_difference_line", 0), changed_line) << out;
+  }
+}
+
+// A drive log's header, the file to fix when its meta is wrong, is named.
+TEST_F(RmpCommandsTest, ReplayNamesRecordingJsonForABadMeta) {
+  const std::string rec = Record("rec");
+  const std::string header_path = rec + "/recording.json";
+  const std::string header = Read(header_path);
+  for (const auto& [key, value] : std::vector<std::pair<std::string, double>>{
+           {"cruise_speed_mps", -1.0}, {"tape_width_m", 0.0}, {"tape_width_m", -0.05}}) {
+    nlohmann::json h = nlohmann::json::parse(header);
+    h["meta"][key] = value;
+    ASSERT_TRUE(WriteFileAtomically(header_path, h.dump()).ok());
+    const auto [rc, err] = RunCapturingErrors({"replay", rec});
+    EXPECT_EQ(rc, 2) << key << ": " << err;
+    EXPECT_NE(err.find(header_path), std::string::npos) << key << ": " << err;
+    EXPECT_NE(err.find("meta." + key), std::string::npos) << key << ": " << err;
+  }
+}
+
+// A recording cut by a power loss: the last line of events.jsonl torn in the middle of a tick. It replays
+// up to the tear, says which line it skipped, and what it replayed is reproduced.
+TEST_F(RmpCommandsTest, ReplayWarnsOfATornLastLineAndReplaysUpToIt) {
+  const std::string rec = Record("rec");
+  const std::string events_path = rec + "/events.jsonl";
+  const std::string events = Read(events_path);
+  // Cut in the middle of the 200th line (the CAN log keeps the frames after it, as after a power loss).
+  std::size_t at = 0;
+  for (int k = 0; k < 199; ++k) at = events.find('\n', at) + 1;
+  ASSERT_LT(at + 15, events.size());
+  ASSERT_TRUE(WriteFileAtomically(events_path, events.substr(0, at + 15)).ok());
+  ::testing::internal::CaptureStdout();
+  const auto [rc, err] = RunCapturingErrors({"replay", rec, "--json"});
+  const std::string out = ::testing::internal::GetCapturedStdout();
+  EXPECT_EQ(rc, 0) << err;
+  EXPECT_NE(err.find(events_path + ":200"), std::string::npos) << err;
+  const nlohmann::json report = nlohmann::json::parse(out);
+  EXPECT_EQ(report.value("commands_reproduced", false), true) << out;
+  EXPECT_GT(report.value("ticks_compared", 0), 50) << out;
+  EXPECT_EQ(report.value("end", ""), "log-ended") << out;
+}
+
 // The command frames (id kRmpIdCommand) of a replayed driver's CAN log, with their times.
 std::vector<std::pair<int64_t, RmpCommandFrame>> CommandFrames(const std::string& can_log) {
   std::vector<std::pair<int64_t, RmpCommandFrame>> out;
@@ -346,6 +475,121 @@ TEST_F(RmpCommandsTest, RunWithReplayBackendRefusesRecord) {
   EXPECT_NE(err.find("--record"), std::string::npos) << err;
   EXPECT_FALSE(fs::exists(dir_ / "new"));
   EXPECT_EQ(Run({"run", "--config", cfg}), 0);
+}
+
+// Two runs started within one second: the second's drive log gets a folder of its own (<time>-2), made
+// with mkdir so that two processes cannot both take one.
+TEST_F(RmpCommandsTest, RunNamesItsDriveLogFolderUniquely) {
+  const fs::path logs = dir_ / "state" / "logs";
+  fs::create_directories(logs);
+  // The folders of the seconds around now, taken (empty, as just made by another run).
+  std::vector<std::string> taken;
+  const std::time_t now = std::time(nullptr);
+  for (std::time_t t = now - 1; t <= now + 30; ++t) {
+    std::tm tm{};
+    localtime_r(&t, &tm);
+    char buf[64];
+    std::strftime(buf, sizeof(buf), "%Y%m%d-%H%M%S", &tm);
+    taken.push_back(buf);
+    fs::create_directories(logs / buf);
+  }
+  const std::string cfg = Write("run.yaml",
+                                std::string(kCommandsTestConfig) + "backend: sim\nsim: {track: " + track_ +
+                                    "}\nrecord: true\nstate_dir: " + (dir_ / "state").string() + "\n");
+  const auto [rc, err] = RunCapturingErrors({"run", "--config", cfg});
+  EXPECT_EQ(rc, 0) << err;
+  std::vector<std::string> recorded;
+  for (const auto& entry : fs::directory_iterator(logs)) {
+    if (!fs::is_empty(entry.path())) recorded.push_back(entry.path().filename().string());
+  }
+  ASSERT_EQ(recorded.size(), 1u);
+  EXPECT_NE(std::find(taken.begin(), taken.end(), recorded[0].substr(0, recorded[0].size() - 2)), taken.end())
+      << recorded[0];
+  EXPECT_EQ(recorded[0].substr(recorded[0].size() - 2), "-2") << recorded[0];
+  EXPECT_EQ(Run({"replay", (logs / recorded[0]).string()}), 0);
+  // A run that fails after its folder was made and before it recorded (its track file is not a track)
+  // leaves no empty folder behind: a service that systemd restarts would leave one per attempt.
+  const std::string bad_track = Write("bad-track.yaml", "points_m: not a list\n");
+  const std::string bad = Write("bad.yaml",
+                                std::string(kCommandsTestConfig) + "backend: sim\nsim: {track: " + bad_track +
+                                    "}\nrecord: true\nstate_dir: " + (dir_ / "state").string() + "\n");
+  const auto folders = [&logs] { return std::distance(fs::directory_iterator(logs), fs::directory_iterator()); };
+  const auto before = folders();
+  const auto [bad_rc, bad_err] = RunCapturingErrors({"run", "--config", bad});
+  EXPECT_EQ(bad_rc, 2) << bad_err;
+  EXPECT_NE(bad_err.find(bad_track), std::string::npos) << bad_err;
+  EXPECT_EQ(folders(), before);
+}
+
+// The service's notifications (sd_notify) to a socket of the test's own, while it lives.
+class NotifySocket {
+ public:
+  explicit NotifySocket(const std::string& path) : path_(path) {
+    fd_ = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    std::snprintf(addr.sun_path, sizeof(addr.sun_path), "%s", path.c_str());
+    bound_ = fd_ >= 0 && ::bind(fd_, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) == 0;
+    ::setenv("NOTIFY_SOCKET", path.c_str(), 1);
+  }
+  ~NotifySocket() {
+    ::unsetenv("NOTIFY_SOCKET");
+    if (fd_ >= 0) ::close(fd_);
+    ::unlink(path_.c_str());
+  }
+  NotifySocket(const NotifySocket&) = delete;
+  NotifySocket& operator=(const NotifySocket&) = delete;
+  bool bound() const { return bound_; }
+  // Whether READY=1 came since the last call.
+  bool Ready() {
+    bool ready = false;
+    char buf[512];
+    ssize_t n;
+    while ((n = ::recv(fd_, buf, sizeof(buf) - 1, 0)) > 0) {
+      buf[n] = 0;
+      if (std::strstr(buf, "READY=1") != nullptr) ready = true;
+    }
+    return ready;
+  }
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+  bool bound_ = false;
+};
+
+// A --record folder that cannot take the drive log is refused as an argument (exit 2) before the service
+// tells systemd it is ready, not when the recorder starts.
+TEST_F(RmpCommandsTest, RunRefusesItsRecordFolderBeforeItIsReady) {
+  const std::string cfg =
+      Write("sim.yaml", std::string(kCommandsTestConfig) + "backend: sim\nsim: {track: " + track_ + "}\n");
+  NotifySocket notify((dir_ / "notify.sock").string());
+  ASSERT_TRUE(notify.bound());
+  EXPECT_EQ(Run({"run", "--config", cfg, "--record", (dir_ / "new").string()}), 0);
+  if (!notify.Ready()) GTEST_SKIP() << "built without libsystemd: no notifications to see";
+  const fs::path full = dir_ / "full";
+  fs::create_directories(full);
+  Write("full/file", "x\n");
+  {
+    const auto [rc, err] = RunCapturingErrors({"run", "--config", cfg, "--record", full.string()});
+    EXPECT_EQ(rc, 2) << err;
+    EXPECT_NE(err.find(full.string()), std::string::npos) << err;
+    EXPECT_FALSE(notify.Ready()) << "READY=1 before the refusal";
+  }
+  // A folder that cannot be made: a link to nowhere.
+  const fs::path dangling = dir_ / "dangling";
+  fs::create_symlink(dir_ / "nowhere" / "rec", dangling);
+  {
+    const auto [rc, err] = RunCapturingErrors({"run", "--config", cfg, "--record", dangling.string()});
+    EXPECT_EQ(rc, 2) << err;
+    EXPECT_NE(err.find(dangling.string()), std::string::npos) << err;
+    EXPECT_FALSE(notify.Ready()) << "READY=1 before the refusal";
+  }
+  // An empty folder is fine.
+  fs::create_directories(dir_ / "empty");
+  EXPECT_EQ(Run({"run", "--config", cfg, "--record", (dir_ / "empty").string()}), 0);
+  EXPECT_TRUE(notify.Ready());
+  EXPECT_FALSE(fs::is_empty(dir_ / "empty"));
 }
 
 TEST_F(RmpCommandsTest, RunRefusesAStateDirThatCannotHoldLogs) {

@@ -3,7 +3,7 @@
 // their unit. The full list:
 //
 //   backend: sim | replay | hardware
-//   state_dir: /var/lib/idi-rmp       drive logs go to <state_dir>/logs/<time> when record: true
+//   state_dir: /var/lib/idi-rmp       drive logs go to <state_dir>/logs/<time>[-N] when record: true
 //   record: false
 //   rig:      {left: {fx_px, fy_px, cx_px, cy_px, k1, k2, p1, p2, k3, x_m, y_m, z_m, yaw_deg, pitch_down_deg},
 //              right: {...}, width_px, height_px}          the fixed cameras' calibration
@@ -46,11 +46,11 @@ enum class Backend { kSim, kReplay, kHardware };
 const char* BackendName(Backend b);
 
 struct CameraDeviceConfig {
-  std::string name;             // "left" / "right"
+  std::string name;              // "left" / "right"
   std::string backend = "v4l2";  // "v4l2" or "libcamera" (when built with it: LibcameraBuilt())
-  std::string device;           // v4l2: /dev/video0, /dev/v4l/by-id/...; libcamera: a camera id or index
+  std::string device;            // v4l2: /dev/video0, /dev/v4l/by-id/...; libcamera: a camera id or index
   int width = 640, height = 480;
-  double frame_rate_hz = 0.0;   // 0: the device's default
+  double frame_rate_hz = 0.0;  // 0: the device's default
 };
 
 struct RmpConfig {

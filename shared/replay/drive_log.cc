@@ -1,5 +1,6 @@
 #include "shared/replay/drive_log.h"
 
+#include <cstdio>
 #include <filesystem>
 #include <map>
 
@@ -7,13 +8,29 @@ namespace idi::replay {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+// A CAN log time as candump writes it: seconds with six decimals.
+std::string LogTime(int64_t t_ns) {
+  char buf[32];
+  std::snprintf(buf,
+                sizeof(buf),
+                "%lld.%06lld",
+                static_cast<long long>(t_ns / 1'000'000'000),
+                static_cast<long long>(t_ns % 1'000'000'000 / 1000));
+  return buf;
+}
+
+}  // namespace
+
 Result<std::unique_ptr<DriveLogWriter>> DriveLogWriter::Create(const std::string& dir, const RecordingHeader& header) {
   RecordingHeader h = header;
   h.kind = kDriveLogKind;
   IDI_ASSIGN_OR_RETURN(RecordingWriter rec, RecordingWriter::Create(dir, h));
   CandumpWriterOptions can_options;
   can_options.mark_direction = true;
-  IDI_ASSIGN_OR_RETURN(std::unique_ptr<CandumpWriter> can, CandumpWriter::Open((fs::path(dir) / kDriveLogCanFile).string(), can_options));
+  IDI_ASSIGN_OR_RETURN(std::unique_ptr<CandumpWriter> can,
+                       CandumpWriter::Open((fs::path(dir) / kDriveLogCanFile).string(), can_options));
   return std::unique_ptr<DriveLogWriter>(new DriveLogWriter(std::move(rec), std::move(can)));
 }
 
@@ -30,13 +47,14 @@ Status DriveLogWriter::AddDelivered(int64_t t_ns, const std::string& camera, uin
 Status DriveLogWriter::AddTick(const DriveTickRecord& t) {
   // The CAN frames up to this tick reach the file with it (a killed run loses at most one tick of them).
   IDI_RETURN_IF_ERROR(can_->Flush());
-  return recording_.Add(t.t_ns, {{"type", "tick"},
-                                 {"left_seq", t.left_seq},
-                                 {"right_seq", t.right_seq},
-                                 {"speed_mps", t.speed_mps},
-                                 {"yaw_rate_rps", t.yaw_rate_rps},
-                                 {"decision", t.decision},
-                                 {"state", t.state}});
+  return recording_.Add(t.t_ns,
+                        {{"type", "tick"},
+                         {"left_seq", t.left_seq},
+                         {"right_seq", t.right_seq},
+                         {"speed_mps", t.speed_mps},
+                         {"yaw_rate_rps", t.yaw_rate_rps},
+                         {"decision", t.decision},
+                         {"state", t.state}});
 }
 
 Status DriveLogWriter::Finish(const nlohmann::json& final_meta) {
@@ -49,13 +67,14 @@ Result<DriveLog> ReadDriveLog(const std::string& dir) {
   DriveLog log;
   IDI_ASSIGN_OR_RETURN(log.recording, ReadRecording(dir));
   if (log.recording.header.kind != kDriveLogKind) {
-    return ParseError(dir + "/recording.json: kind is '" + log.recording.header.kind + "', expected '" + kDriveLogKind + "'");
+    return ParseError(dir + "/recording.json: kind is '" + log.recording.header.kind + "', expected '" + kDriveLogKind +
+                      "'");
   }
   const std::string events = dir + "/events.jsonl";
   std::map<std::pair<std::string, uint64_t>, std::size_t> frame_index;
   for (std::size_t i = 0; i < log.recording.events.size(); ++i) {
     const nlohmann::json& e = log.recording.events[i];
-    const std::string where = events + ": event " + std::to_string(i + 1);
+    const std::string where = events + ":" + std::to_string(log.recording.lines[i]);
     std::string type;
     // A sequence number must be a non-negative integer (-1 read as uint64 was 2^64 - 1).
     auto seq_of = [&](const nlohmann::json& v) -> Result<uint64_t> {
@@ -76,8 +95,8 @@ Result<DriveLog> ReadDriveLog(const std::string& dir) {
         const auto [at, inserted] = frame_index.emplace(std::make_pair(f.camera, f.seq), log.frames.size());
         if (!inserted) {
           return ParseError(where + ": frame " + f.camera + "/" + std::to_string(f.seq) +
-                            " recorded twice (first at event " + std::to_string(log.frames[at->second].event + 1) +
-                            ")");
+                            " recorded twice (first on line " +
+                            std::to_string(log.recording.lines[log.frames[at->second].event]) + ")");
         }
         log.frames.push_back(f);
       } else if (type == "delivered") {
@@ -98,6 +117,13 @@ Result<DriveLog> ReadDriveLog(const std::string& dir) {
         t.yaw_rate_rps = e.at("yaw_rate_rps").get<double>();
         t.decision = e.at("decision").get<std::string>();
         t.state = e.at("state").get<std::string>();
+        t.line = log.recording.lines[i];
+        // The replay runs the ticks on one clock: a tick at or before the previous one cannot be rerun.
+        if (!log.ticks.empty() && t.t_ns <= log.ticks.back().t_ns) {
+          return ParseError(where + ": tick at t_ns " + std::to_string(t.t_ns) + " is not after the tick before it (" +
+                            std::to_string(log.ticks.back().t_ns) + " on line " +
+                            std::to_string(log.ticks.back().line) + "): ticks must be in time order");
+        }
         log.ticks.push_back(std::move(t));
       }
     } catch (const nlohmann::json::exception& ex) {
@@ -107,6 +133,16 @@ Result<DriveLog> ReadDriveLog(const std::string& dir) {
   const std::string can_path = (fs::path(dir) / kDriveLogCanFile).string();
   if (!fs::exists(can_path)) return NotFound(can_path + ": the drive log has no CAN log");
   IDI_ASSIGN_OR_RETURN(log.can, ReadCandumpFile(can_path, &log.can_torn_last_line));
+  // The driver writes its frames as they come, on one clock: a time that goes backwards is a damaged or
+  // hand-edited log, which the replay would feed in a different order than the recorded run saw it.
+  for (std::size_t k = 1; k < log.can.size(); ++k) {
+    const CandumpRecord &before = log.can[k - 1], &r = log.can[k];
+    if (r.frame.timestamp_ns < before.frame.timestamp_ns) {
+      return ParseError(can_path + ":" + std::to_string(r.line) + ": the time goes backwards (" +
+                        LogTime(r.frame.timestamp_ns) + " s after " + LogTime(before.frame.timestamp_ns) +
+                        " s on line " + std::to_string(before.line) + "); a drive log's CAN frames are in time order");
+    }
+  }
   return log;
 }
 

@@ -46,6 +46,7 @@ struct DriveTickRecord {
   double speed_mps = 0.0, yaw_rate_rps = 0.0;
   std::string decision;  // "drive", or why zero was commanded
   std::string state;     // the planner's state
+  int line = 0;          // its line in events.jsonl (read logs only; for messages)
 };
 
 class DriveLogWriter {
@@ -54,7 +55,7 @@ class DriveLogWriter {
   static Result<std::unique_ptr<DriveLogWriter>> Create(const std::string& dir, const RecordingHeader& header);
   ~DriveLogWriter();
 
-  Status AddFrame(const hal::Image& image);                                      // image event + PNG
+  Status AddFrame(const hal::Image& image);                                    // image event + PNG
   Status AddDelivered(int64_t t_ns, const std::string& camera, uint64_t seq);  // delivered event
   Status AddTick(const DriveTickRecord& tick);
   // The CAN log for the driver (RmpDriver::SetFrameLog).
@@ -77,8 +78,10 @@ struct DriveLog {
   std::string can_torn_last_line;  // can.log's last line, dropped: it has no newline (see ParseCandumpText)
 };
 
-// Reads a drive log. ParseError naming the file (and line) for malformed content or a recording of
-// another kind; NotFound when the folder or a file is missing.
+// Reads a drive log. ParseError naming the file (and line) for malformed content, a recording of
+// another kind, ticks out of time order (each must come after the one before) and a can.log whose time
+// goes backwards; NotFound when the folder or a file is missing. A torn last line of events.jsonl or
+// can.log (a power cut) is skipped and reported (recording.truncated_line, can_torn_last_line).
 Result<DriveLog> ReadDriveLog(const std::string& dir);
 // Loads one frame's image (8-bit grey) with its exposure time and sequence number.
 Result<hal::Image> LoadDriveFrame(const DriveLog& log, const DriveFrameRecord& frame);

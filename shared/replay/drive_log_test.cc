@@ -109,5 +109,64 @@ TEST(DriveLogTest, NamesWhatIsWrong) {
   fs::remove_all(bad);
 }
 
+// A drive log whose events and CAN log are the texts given.
+std::string WriteLog(const std::string& name, const std::string& events, const std::string& can) {
+  const std::string dir = TempDir(name);
+  {
+    auto w = DriveLogWriter::Create(dir, {});
+    EXPECT_TRUE(w.ok()) << w.status().ToString();
+    if (w.ok()) {
+      EXPECT_TRUE((*w)->Finish({}).ok());
+    }
+  }
+  std::ofstream(fs::path(dir) / "events.jsonl") << events;
+  std::ofstream(fs::path(dir) / kDriveLogCanFile) << can;
+  return dir;
+}
+
+// A tick event after its t_ns.
+constexpr const char* kTick =
+    R"("type":"tick","left_seq":-1,"right_seq":-1,"speed_mps":0,"yaw_rate_rps":0,"decision":"drive","state":"follow"})";
+
+constexpr const char* kInOrderCan =
+    "(0000000001.000000) can0 402#0081008100000075 R\n"
+    "(0000000001.010000) can0 413#0000000000000000 T\n";
+
+// Ticks out of time order cannot be rerun on one clock: the tick's line is named (blank lines counted).
+TEST(DriveLogTest, RefusesTicksOutOfTimeOrder) {
+  const std::string good = WriteLog(
+      "in_order", std::string("{\"t_ns\":20000000,") + kTick + "\n\n{\"t_ns\":40000000," + kTick + "\n", kInOrderCan);
+  auto log = ReadDriveLog(good);
+  ASSERT_TRUE(log.ok()) << log.status().ToString();
+  ASSERT_EQ(log->ticks.size(), 2u);
+  EXPECT_EQ(log->ticks[1].line, 3);
+  fs::remove_all(good);
+
+  const std::string ticks = WriteLog(
+      "ticks_back", std::string("{\"t_ns\":40000000,") + kTick + "\n\n{\"t_ns\":20000000," + kTick + "\n", kInOrderCan);
+  auto back = ReadDriveLog(ticks);
+  ASSERT_FALSE(back.ok());
+  EXPECT_EQ(back.status().code(), StatusCode::kParseError);
+  EXPECT_NE(back.status().message().find(ticks + "/events.jsonl:3:"), std::string::npos) << back.status().message();
+  EXPECT_NE(back.status().message().find("line 1"), std::string::npos) << back.status().message();
+  fs::remove_all(ticks);
+}
+
+// A can.log whose time goes backwards would be fed to the replay in another order than the recorded run
+// saw it: its line is named (comment lines counted).
+TEST(DriveLogTest, RefusesACanLogWhoseTimeGoesBackwards) {
+  const std::string frames = WriteLog("can_back",
+                                      std::string("{\"t_ns\":20000000,") + kTick + "\n",
+                                      "(0000000001.010000) can0 413#0000000000000000 T\n"
+                                      "# a comment\n"
+                                      "(0000000001.000000) can0 402#0081008100000075 R\n");
+  auto can_back = ReadDriveLog(frames);
+  ASSERT_FALSE(can_back.ok());
+  EXPECT_EQ(can_back.status().code(), StatusCode::kParseError);
+  EXPECT_NE(can_back.status().message().find(frames + "/can.log:3:"), std::string::npos) << can_back.status().message();
+  EXPECT_NE(can_back.status().message().find("backwards"), std::string::npos) << can_back.status().message();
+  fs::remove_all(frames);
+}
+
 }  // namespace
 }  // namespace idi::replay

@@ -211,6 +211,7 @@ Result<Recording> ReadRecording(const std::string& dir) {
     if (nl == std::string::npos) {
       // A last line without its newline: the run was killed while writing it.
       r.truncated = true;
+      r.truncated_line = line_no;
       break;
     }
     const std::string line = events.substr(start, nl - start);
@@ -228,6 +229,7 @@ Result<Recording> ReadRecording(const std::string& dir) {
       return ParseError(events_path + ":" + std::to_string(line_no) + ": " + wrong);
     }
     r.events.push_back(std::move(e));
+    r.lines.push_back(line_no);
   }
   return r;
 }

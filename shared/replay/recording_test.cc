@@ -48,6 +48,8 @@ TEST(RecordingTest, RoundTripWithImagesAndATornLastLine) {
   EXPECT_DOUBLE_EQ(r->header.cameras.at("left").params[kK1], -0.1);
   ASSERT_EQ(r->events.size(), 2u);
   EXPECT_TRUE(r->truncated);
+  EXPECT_EQ(r->truncated_line, 3);
+  EXPECT_EQ(r->lines, (std::vector<int>{1, 2}));
   EXPECT_EQ(r->events[0]["t_ns"], 10);
   const auto back = LoadRecordedImage(*r, r->events[1]);
   ASSERT_TRUE(back.ok());

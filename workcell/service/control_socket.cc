@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
 #include <vector>
 
 namespace idi::workcell {
@@ -37,7 +38,8 @@ Result<std::string> ReadLine(int fd, std::chrono::milliseconds timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   char buf[4096];
   while (true) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     if (left.count() <= 0) return Timeout("no complete line within " + std::to_string(timeout.count()) + " ms");
     pollfd p{fd, POLLIN, 0};
     const int r = ::poll(&p, 1, static_cast<int>(left.count()));
@@ -54,7 +56,8 @@ Result<std::string> ReadLine(int fd, std::chrono::milliseconds timeout) {
       line.resize(nl);
       return line;
     }
-    if (line.size() > kMaxRequestBytes) return InvalidArgument("line longer than " + std::to_string(kMaxRequestBytes) + " bytes");
+    if (line.size() > kMaxRequestBytes)
+      return InvalidArgument("line longer than " + std::to_string(kMaxRequestBytes) + " bytes");
   }
 }
 
@@ -69,6 +72,30 @@ Status WriteAll(int fd, const std::string& data) {
   return Status::Ok();
 }
 
+// Makes the socket's folder and its missing parents (0755: operators of the socket's group must reach
+// it whatever the service's umask); bind() does not make it. A folder that exists is left as it is.
+Status MakeSocketFolder(const std::string& socket_path) {
+  namespace fs = std::filesystem;
+  const fs::path folder = fs::path(socket_path).parent_path();
+  if (folder.empty()) return Status::Ok();  // "control.sock": the working folder
+  std::vector<fs::path> missing;
+  std::error_code ec;
+  for (fs::path p = folder; !p.empty() && !fs::exists(p, ec); p = p.parent_path()) {
+    missing.push_back(p);
+    if (p == p.parent_path()) break;
+  }
+  for (auto it = missing.rbegin(); it != missing.rend(); ++it) {
+    if (::mkdir(it->c_str(), 0755) != 0 && errno != EEXIST) {
+      return IoError(socket_path + ": cannot make the control socket's folder " + it->string() + ": " + Errno());
+    }
+    ::chmod(it->c_str(), 0755);  // not through the umask (see the socket's mode below)
+  }
+  if (!fs::is_directory(folder, ec)) {
+    return IoError(socket_path + ": the control socket's folder " + folder.string() + " is not a folder");
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 Result<std::unique_ptr<ControlServer>> ControlServer::Start(const ControlServerOptions& options, Handler handler) {
@@ -79,6 +106,7 @@ Result<std::unique_ptr<ControlServer>> ControlServer::Start(const ControlServerO
     if (g == nullptr) return InvalidArgument("control socket group '" + options.group + "' does not exist");
     gid = g->gr_gid;
   }
+  IDI_RETURN_IF_ERROR(MakeSocketFolder(options.path));
   // A socket file left by a crashed service is removed; one with a live listener is not.
   if (::access(options.path.c_str(), F_OK) == 0) {
     const int probe = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
@@ -123,7 +151,8 @@ Result<std::unique_ptr<ControlServer>> ControlServer::Start(const ControlServerO
   return std::unique_ptr<ControlServer>(new ControlServer(options, std::move(handler), fd, pipe_fds[0], pipe_fds[1]));
 }
 
-ControlServer::ControlServer(ControlServerOptions options, Handler handler, int listen_fd, int wake_read, int wake_write)
+ControlServer::ControlServer(
+    ControlServerOptions options, Handler handler, int listen_fd, int wake_read, int wake_write)
     : options_(std::move(options)),
       handler_(std::move(handler)),
       listen_fd_(listen_fd),
@@ -242,7 +271,8 @@ void ControlServer::Serve() {
   for (const Client& c : clients) ::close(c.fd);
 }
 
-Result<nlohmann::json> SendControlRequest(const std::string& path, const ControlRequest& request,
+Result<nlohmann::json> SendControlRequest(const std::string& path,
+                                          const ControlRequest& request,
                                           std::chrono::milliseconds timeout) {
   IDI_ASSIGN_OR_RETURN(const sockaddr_un addr, SocketAddress(path));
   const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);

@@ -28,8 +28,9 @@ class ControlServer {
  public:
   using Handler = std::function<nlohmann::json(const ControlRequest&)>;
 
-  // Binds and starts serving on a background thread. FailedPrecondition if another process is
-  // listening on the path; InvalidArgument for an unknown group or a path too long for a socket.
+  // Binds and starts serving on a background thread; the path's folder is made (0755) when missing.
+  // FailedPrecondition if another process is listening on the path; InvalidArgument for an unknown
+  // group or a path too long for a socket; IoError naming the folder when it cannot be made.
   static Result<std::unique_ptr<ControlServer>> Start(const ControlServerOptions& options, Handler handler);
   ~ControlServer();
   ControlServer(const ControlServer&) = delete;
@@ -55,7 +56,8 @@ class ControlServer {
 
 // Client: sends one request and returns the reply object. Unavailable-style errors (no service
 // running, permission denied) come back as FailedPrecondition with the path named.
-Result<nlohmann::json> SendControlRequest(const std::string& path, const ControlRequest& request,
+Result<nlohmann::json> SendControlRequest(const std::string& path,
+                                          const ControlRequest& request,
                                           std::chrono::milliseconds timeout = std::chrono::milliseconds(5000));
 
 }  // namespace idi::workcell

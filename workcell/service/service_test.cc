@@ -174,7 +174,9 @@ TEST(ServiceTest, StartupJobsRunThenExitWhenIdle) {
   bad.exit_when_idle = true;
   JobSpec failing;
   failing.name = "faulty";
-  failing.run = [](JobContext&, const nlohmann::json&) -> Result<nlohmann::json> { return NotFound("no object on the table"); };
+  failing.run = [](JobContext&, const nlohmann::json&) -> Result<nlohmann::json> {
+    return NotFound("no object on the table");
+  };
   WorkcellService svc2(bad, &dev, {failing});
   const Status st2 = svc2.Run();
   ASSERT_FALSE(st2.ok());
@@ -583,7 +585,8 @@ TEST(CalibrationStoreTest, CommitsAtomicallyAndSurvivesAnInterruptedCommit) {
   // A commit killed half way leaves a temporary folder; the current calibration is untouched and
   // the leftover is cleaned at the next open.
   fs::create_directories(fs::path(store.root()) / "versions" / ".tmp-0003");
-  ASSERT_TRUE(WriteFileAtomically((fs::path(store.root()) / "versions" / ".tmp-0003" / "robot1.yaml").string(), "x").ok());
+  ASSERT_TRUE(
+      WriteFileAtomically((fs::path(store.root()) / "versions" / ".tmp-0003" / "robot1.yaml").string(), "x").ok());
   CalibrationStore reopened(state);
   ASSERT_TRUE(reopened.Open().ok());
   const auto cur = reopened.Current();
@@ -628,6 +631,33 @@ TEST(ControlSocketTest, RoundTripAndValidation) {
   (*server)->Stop();
   EXPECT_FALSE(fs::exists(opt.path));
   EXPECT_EQ(SendControlRequest(opt.path, Job("scan")).status().code(), StatusCode::kFailedPrecondition);
+  fs::remove_all(dir);
+}
+
+// The socket's folder is made when missing (a config's `results/day.sock` in a fresh checkout), and one
+// that cannot be made is named.
+TEST(ControlSocketTest, MakesTheSocketFolder) {
+  const std::string dir = TempState("socket-folder");
+  ControlServerOptions opt;
+  opt.path = dir + "/results/run/control.sock";
+  ASSERT_FALSE(fs::exists(dir + "/results"));
+  auto server = ControlServer::Start(opt, [](const ControlRequest&) { return OkReply(); });
+  ASSERT_TRUE(server.ok()) << server.status().ToString();
+  for (const std::string& folder : {dir + "/results", dir + "/results/run"}) {
+    EXPECT_EQ(fs::status(folder).permissions() & fs::perms::all,
+              fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec | fs::perms::others_read |
+                  fs::perms::others_exec)
+        << folder;
+  }
+  const auto reply = SendControlRequest(opt.path, Job("scan"));
+  EXPECT_TRUE(reply.ok()) << reply.status().ToString();
+  (*server)->Stop();
+  // A file where the folder should be.
+  ASSERT_TRUE(WriteFileAtomically(dir + "/file", "x\n").ok());
+  opt.path = dir + "/file/sub/control.sock";
+  const auto refused = ControlServer::Start(opt, [](const ControlRequest&) { return OkReply(); });
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find(dir + "/file/sub"), std::string::npos) << refused.status().ToString();
   fs::remove_all(dir);
 }
 
@@ -689,8 +719,14 @@ TEST(ControlSocketTest, SilentClientsDoNotDelayAnotherClient) {
 TEST(ControlProtocolTest, RejectsMalformedRequests) {
   EXPECT_TRUE(ParseControlRequest(R"({"cmd":"status"})").ok());
   EXPECT_TRUE(ParseControlRequest(R"({"cmd":"job","job":"scan","args":{"views":6}})").ok());
-  for (const std::string bad : {"", "nonsense", "[1,2]", R"({"cmd":5})", R"({"cmd":"dance"})",
-                                R"({"cmd":"job"})", R"({"cmd":"job","job":""})", R"({"cmd":"job","job":"x","args":3})",
+  for (const std::string bad : {"",
+                                "nonsense",
+                                "[1,2]",
+                                R"({"cmd":5})",
+                                R"({"cmd":"dance"})",
+                                R"({"cmd":"job"})",
+                                R"({"cmd":"job","job":""})",
+                                R"({"cmd":"job","job":"x","args":3})",
                                 R"({"cmd":"status","extra":1})"}) {
     EXPECT_FALSE(ParseControlRequest(bad).ok()) << bad;
   }
