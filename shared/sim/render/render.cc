@@ -77,6 +77,17 @@ Status CheckCamera(const CameraModel& camera, const Rigid3d& cam_from_world) {
   return k;
 }
 #pragma GCC diagnostic pop
+
+// The same on AVX2, four values at a time.
+[[gnu::target("avx2")]] int ScaleRowAvx2(float* v, int n, double gain) {
+  const __m256d g = _mm256_set1_pd(gain);
+  int k = 0;
+  for (; k + 4 <= n; k += 4) {
+    const __m256d x = _mm256_cvtps_pd(_mm_loadu_ps(v + k));
+    _mm_storeu_ps(v + k, _mm256_cvtpd_ps(_mm256_mul_pd(x, g)));
+  }
+  return k;
+}
 #endif
 
 // v[k] = float(double(v[k]) * gain) for k < n: the product in double, rounded to float once.
@@ -84,7 +95,12 @@ void ScaleRow(float* v, int n, double gain) {
   int k = 0;
 #if defined(__x86_64__)
   static const bool avx512 = __builtin_cpu_supports("avx512f") != 0;
-  if (avx512) k = ScaleRowAvx512(v, n, gain);
+  static const bool avx2 = __builtin_cpu_supports("avx2") != 0;
+  if (avx512) {
+    k = ScaleRowAvx512(v, n, gain);
+  } else if (avx2) {
+    k = ScaleRowAvx2(v, n, gain);
+  }
 #endif
   for (; k < n; ++k) v[k] = static_cast<float>(static_cast<double>(v[k]) * gain);
 }
