@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -53,9 +54,47 @@ CLI::App* CliApp::AddCommand(CLI::App* parent,
 
 namespace {
 
+// "inf", "-Infinity", "nan": not a notation question; each option's own check says whether it takes them.
+bool IsInfOrNan(std::string value) {
+  if (!value.empty() && (value[0] == '+' || value[0] == '-')) value.erase(0, 1);
+  for (char& c : value) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return value == "inf" || value == "infinity" || value == "nan";
+}
+
+// CLI11 reads numbers as strtod and strtoll with base 0 do: "0x10" is 16, and an integer's "010" is 8.
+// Numbers on the command line are decimal: every numeric option of `app` and its subcommands refuses
+// another form, and an integer's leading zeros are dropped before CLI11 reads it ("010" is 10).
+void RequireDecimalNumbers(CLI::App* app) {
+  for (CLI::Option* opt : app->get_options()) {
+    if (opt->get_type_size_max() == 0) continue;  // a flag
+    const std::string type = opt->get_type_name();
+    const bool integer = type.rfind("INT", 0) == 0 || type.rfind("UINT", 0) == 0;
+    if (!integer && type.rfind("FLOAT", 0) != 0) continue;
+    // A transform runs before the option's other validators (CLI::Range would read "0x10" as 16).
+    opt->transform(CLI::Validator(
+        [integer](std::string& value) -> std::string {
+          if (!integer && IsInfOrNan(value)) return std::string();
+          if (!IsDecimalNumber(value)) return "'" + value + "' is not a decimal number";
+          if (integer) {
+            const std::size_t sign = value[0] == '-' || value[0] == '+' ? 1 : 0;
+            std::size_t zeros = sign;
+            while (zeros + 1 < value.size() && value[zeros] == '0' &&
+                   std::isdigit(static_cast<unsigned char>(value[zeros + 1]))) {
+              ++zeros;
+            }
+            value.erase(sign, zeros - sign);
+          }
+          return std::string();
+        },
+        ""));
+  }
+  for (CLI::App* sub : app->get_subcommands([](CLI::App*) { return true; })) RequireDecimalNumbers(sub);
+}
+
 int ParseAndRun(CliApp& cli, int argc, char** argv) {
   try {
     try {
+      RequireDecimalNumbers(&cli.app);
       cli.app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
       return cli.app.exit(e);
@@ -118,6 +157,28 @@ int RunCli(CliApp& cli, int argc, char** argv) {
   return CheckStandardOutput(cli.app.get_name(), exit_code);
 }
 
+bool IsDecimalNumber(std::string_view text) {
+  const auto digits = [&text](std::size_t* i) {
+    const std::size_t start = *i;
+    while (*i < text.size() && std::isdigit(static_cast<unsigned char>(text[*i]))) ++*i;
+    return *i - start;
+  };
+  std::size_t i = 0;
+  if (i < text.size() && (text[i] == '+' || text[i] == '-')) ++i;
+  std::size_t mantissa = digits(&i);
+  if (i < text.size() && text[i] == '.') {
+    ++i;
+    mantissa += digits(&i);
+  }
+  if (mantissa == 0) return false;
+  if (i < text.size() && (text[i] == 'e' || text[i] == 'E')) {
+    ++i;
+    if (i < text.size() && (text[i] == '+' || text[i] == '-')) ++i;
+    if (digits(&i) == 0) return false;
+  }
+  return i == text.size();
+}
+
 Result<std::vector<double>> ParseNumberList(const std::string& text,
                                             std::size_t expected_count,
                                             const std::string& what) {
@@ -129,18 +190,22 @@ Result<std::vector<double>> ParseNumberList(const std::string& text,
   std::stringstream ss(text);
   std::string item;
   while (std::getline(ss, item, ',')) {
-    std::size_t used = 0;
+    // Spaces around a number are fine ("1, 2, 3"); the number itself is decimal (stod reads "0x10" as 16).
+    std::size_t begin = 0, end = item.size();
+    while (begin < end && std::isspace(static_cast<unsigned char>(item[begin]))) ++begin;
+    while (end > begin && std::isspace(static_cast<unsigned char>(item[end - 1]))) --end;
+    const std::string number = item.substr(begin, end - begin);
     double v = 0;
-    try {
-      v = std::stod(item, &used);
-    } catch (const std::exception&) {
-      used = 0;
+    bool read = IsDecimalNumber(number);
+    if (read) {
+      try {
+        v = std::stod(number);
+      } catch (const std::exception&) {
+        read = false;  // out of range: beyond a double
+      }
     }
-    while (used < item.size() && std::isspace(static_cast<unsigned char>(item[used]))) {
-      ++used;
-    }
-    if (item.empty() || used != item.size() || !std::isfinite(v)) {
-      return InvalidArgument(what + ": '" + item + "' is not a finite number (in '" + text + "')");
+    if (!read || !std::isfinite(v)) {
+      return InvalidArgument(what + ": '" + item + "' is not a finite decimal number (in '" + text + "')");
     }
     out.push_back(v);
   }

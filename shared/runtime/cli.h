@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <functional>
 #include <string>
+#include <string_view>
 
 #include "shared/util/status.h"
 
@@ -38,7 +39,12 @@ struct CliApp {
 // written to stdout (a full disk, a closed descriptor) fails (exit 1) with the reason on stderr.
 int RunCli(CliApp& cli, int argc, char** argv);
 
-// Parses "x,y,z"-style lists of numbers; InvalidArgument naming `what` on malformed input.
+// Whether `text` is a number written in decimal: an optional sign, digits with an optional decimal
+// point ("1", "-1.5", ".5", "5."), an optional exponent ("1e-3"). Not hexadecimal ("0x10"), "inf" or
+// "nan", which strtod (and CLI11, through it) also read.
+bool IsDecimalNumber(std::string_view text);
+
+// Parses "x,y,z"-style lists of decimal numbers; InvalidArgument naming `what` on malformed input.
 Result<std::vector<double>> ParseNumberList(const std::string& text,
                                             std::size_t expected_count,
                                             const std::string& what);

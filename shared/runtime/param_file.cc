@@ -50,6 +50,35 @@ Result<double> ReadNumber(const YAML::Node& node, const std::string& where, cons
   return v;
 }
 
+// A length beyond kMaxParamLengthM (in the spec's unit) is refused, naming the key and the bound.
+Status CheckLength(const ParamSpec& spec, double file_value, const YAML::Node& node, const std::string& where) {
+  if (spec.unit != Unit::kMillimetre && spec.unit != Unit::kMetre) return Status::Ok();
+  const double max = spec.unit == Unit::kMillimetre ? kMaxParamLengthM * 1000.0 : kMaxParamLengthM;
+  if (std::abs(file_value) <= max) return Status::Ok();
+  std::ostringstream s;
+  s << At(where, node) << ": key '" << spec.Key() << "': " << file_value << " " << UnitSuffix(spec.unit)
+    << " is out of range (a length is at most " << max << " " << UnitSuffix(spec.unit);
+  if (spec.unit == Unit::kMillimetre) s << ", " << kMaxParamLengthM << " m,";
+  s << " in magnitude)";
+  return OutOfRange(s.str());
+}
+
+// The file's `model`, when it has one, must be one of `models` (when given).
+Status CheckModel(const YAML::Node& node, const std::vector<std::string>& models, const std::string& where) {
+  const YAML::Node model = node["model"];
+  if (models.empty() || !model) return Status::Ok();
+  const std::string name = model.IsScalar() ? model.Scalar() : std::string();
+  for (const std::string& m : models) {
+    if (name == m) return Status::Ok();
+  }
+  std::string expected;
+  for (std::size_t i = 0; i < models.size(); ++i) {
+    expected += (i == 0 ? "" : i + 1 == models.size() ? " or " : ", ") + models[i];
+  }
+  return InvalidArgument(At(where, model) + ": model '" + name +
+                         "' is not the one expected here (expected model: " + expected + ")");
+}
+
 }  // namespace
 
 Result<ParamSet> ParamSetFromYaml(const YAML::Node& node,
@@ -59,6 +88,7 @@ Result<ParamSet> ParamSetFromYaml(const YAML::Node& node,
   if (!node.IsMap()) {
     return ParseError(where + ": expected a map of parameters (key: value)");
   }
+  IDI_RETURN_IF_ERROR(CheckModel(node, options.models, where));
   ParamSet set(specs);
   std::map<std::string, std::size_t> by_key, by_name;
   for (std::size_t i = 0; i < specs.size(); ++i) {
@@ -103,6 +133,7 @@ Result<ParamSet> ParamSetFromYaml(const YAML::Node& node,
         return ParseError(At(where, v) + ": key '" + key + "': missing 'value'");
       }
       IDI_ASSIGN_OR_RETURN(const double value, ReadNumber(v["value"], where, key, "value"));
+      IDI_RETURN_IF_ERROR(CheckLength(specs[i], value, v["value"], where));
       set.set_file_value(i, value);
       if (v["std"]) {
         IDI_ASSIGN_OR_RETURN(const double sd, ReadNumber(v["std"], where, key, "std"));
@@ -113,6 +144,7 @@ Result<ParamSet> ParamSetFromYaml(const YAML::Node& node,
       }
     } else {
       IDI_ASSIGN_OR_RETURN(const double value, ReadNumber(v, where, key, "value"));
+      IDI_RETURN_IF_ERROR(CheckLength(specs[i], value, v, where));
       set.set_file_value(i, value);
     }
   }

@@ -6,7 +6,8 @@
 //   a3_mm: 625.5
 // Validation: every parameter must be present, no unknown key is allowed (except those the caller
 // lists as extra sections), a key whose name matches a parameter but whose unit suffix does not is
-// reported as a unit error, and values must be finite. Errors name the file, the line and the key.
+// reported as a unit error, values must be finite, and a length (mm or m) at most kMaxParamLengthM in
+// magnitude. Errors name the file, the line and the key.
 #pragma once
 
 #include <yaml-cpp/yaml.h>
@@ -19,11 +20,19 @@
 
 namespace idi {
 
+// The largest length a parameter file may give, in metres. The workcell is a few metres across and a
+// vehicle's geometry smaller still: a length beyond 100 m is a unit slip or a corrupt file, and one near
+// the largest double overflows the kinematics that sum such lengths into inf and NaN poses.
+inline constexpr double kMaxParamLengthM = 100.0;
+
 struct ParamFileOptions {
   // Top-level keys that may appear besides the parameters (e.g. "model", "statistics").
   std::vector<std::string> extra_keys = {"model", "comment"};
   // When false, parameters missing from the file keep their nominal values.
   bool require_all = true;
+  // The values a top-level `model` key may have (e.g. {"rx130"}); empty: any. A file without the key is
+  // read (hand-written files may leave it out); one of another model is refused, naming both.
+  std::vector<std::string> models;
 };
 
 // Parses `node` (a YAML map) into a ParamSet of `specs`. `where` names the source in messages.

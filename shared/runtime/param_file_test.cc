@@ -117,6 +117,44 @@ TEST_F(ParamFileTest, NanIsRejected) {
   }
 }
 
+// A finite but absurd length (1.7e308 mm) overflowed the forward kinematics into inf and NaN poses: a
+// length beyond 100 m is refused, naming the file, the line and the key.
+TEST_F(ParamFileTest, ALengthBeyondAHundredMetresIsRejected) {
+  for (const std::string bad : {"a3_mm: {value: 1.7e308, std: 0.1}", "a3_mm: -100000.5"}) {
+    const std::string path = WriteRobotFile("a3_mm", bad);
+    const auto r = LoadParamFile(path, Rx130ParamSpecs());
+    ASSERT_FALSE(r.ok()) << bad;
+    EXPECT_EQ(r.status().code(), StatusCode::kOutOfRange) << r.status().ToString();
+    EXPECT_NE(r.status().message().find("robot.yaml:7: key 'a3_mm': "), std::string::npos) << r.status().message();
+    EXPECT_NE(r.status().message().find("a length is at most 100000 mm, 100 m,"), std::string::npos)
+        << r.status().message();
+  }
+  // Up to the bound, and any angle, are read.
+  EXPECT_TRUE(LoadParamFile(WriteRobotFile("a3_mm", "a3_mm: -100000"), Rx130ParamSpecs()).ok());
+  EXPECT_TRUE(LoadParamFile(WriteRobotFile("theta3_deg", "theta3_deg: 1e300"), Rx130ParamSpecs()).ok());
+}
+
+// A file of another model (a laser file given for the arm) is refused naming the file and the model
+// expected; a file without a model is read.
+TEST_F(ParamFileTest, AFileOfAnotherModelIsRejected) {
+  const std::string path = WriteRobotFile();  // model: rx130
+  ParamFileOptions o;
+  o.models = {"laser", "rx130-laser-vicki"};
+  const auto r = LoadParamFile(path, Rx130ParamSpecs(), o);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(
+      r.status().message().find(
+          "robot.yaml:1: model 'rx130' is not the one expected here (expected model: laser or rx130-laser-vicki)"),
+      std::string::npos)
+      << r.status().message();
+  o.models = {"rx130"};
+  EXPECT_TRUE(LoadParamFile(path, Rx130ParamSpecs(), o).ok());
+  const std::string unnamed = WriteRobotFile("model", "");
+  o.models = {"laser"};
+  EXPECT_TRUE(LoadParamFile(unnamed, Rx130ParamSpecs(), o).ok());
+}
+
 TEST_F(ParamFileTest, NonNumberAndMalformedYamlAreRejected) {
   std::string path = WriteRobotFile("a2_mm", "a2_mm: twelve");
   auto r = LoadParamFile(path, Rx130ParamSpecs());

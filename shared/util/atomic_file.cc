@@ -278,9 +278,15 @@ Result<std::string> ReadFile(const std::string& path) {
   if (std::filesystem::is_directory(path, ec)) {
     return InvalidArgument(path + ": is a folder, expected a file");
   }
+  errno = 0;
   std::ifstream in(path, std::ios::binary);
   if (!in) {
-    return IoError(path + ": cannot open for reading");
+    const int error = errno;
+    const std::string why = error != 0 ? std::string(": ") + std::strerror(error) : std::string();
+    // A file the user may not read is bad input, like a missing one; other failures (too many open
+    // files) are the run's.
+    if (error == EACCES || error == EPERM) return InvalidArgument(path + ": cannot open for reading" + why);
+    return IoError(path + ": cannot open for reading" + why);
   }
   std::ostringstream ss;
   ss << in.rdbuf();

@@ -51,7 +51,8 @@ Status CheckDistinctFiles(const std::vector<NamedFile>& inputs,
                           const std::vector<NamedFile>& outputs,
                           const std::string& command);
 
-// Reads a whole file; NotFound if it does not exist, IoError if it cannot be read.
+// Reads a whole file; NotFound if it does not exist, InvalidArgument if it is a folder or may not be
+// read (permission denied), IoError if reading it fails otherwise. Messages name the file and the reason.
 Result<std::string> ReadFile(const std::string& path);
 
 }  // namespace idi

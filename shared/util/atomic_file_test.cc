@@ -194,5 +194,19 @@ TEST_F(AtomicFileTest, ReadMissingFileIsNotFound) {
   EXPECT_EQ(ReadFile(dir_.string()).status().code(), StatusCode::kInvalidArgument);
 }
 
+// A file that may not be read is bad input like a missing one (InvalidArgument: exit 2 in the
+// binaries), with the reason (before: IoError, exit 1, no reason).
+TEST_F(AtomicFileTest, ReadUnreadableFileIsInvalidArgumentWithTheReason) {
+  if (::geteuid() == 0) GTEST_SKIP() << "root reads a file without read permission";
+  const std::string path = (dir_ / "secret.yaml").string();
+  ASSERT_TRUE(WriteFileAtomically(path, "x: 1\n").ok());
+  fs::permissions(path, fs::perms::none);
+  const auto r = ReadFile(path);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument) << r.status().ToString();
+  EXPECT_NE(r.status().message().find(path + ": cannot open for reading: Permission denied"), std::string::npos)
+      << r.status().message();
+}
+
 }  // namespace
 }  // namespace idi

@@ -1,6 +1,7 @@
 // The binaries' command-line contracts: --help/--version, exit codes (0 ok, 2 bad input, 1 failed
 // run), JSON on stdout, messages on stderr naming what was wrong.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -80,6 +81,113 @@ TEST(CliIntegrationTest, ParamsFileRoundTripsThroughKinematics) {
   r = RunCommand(kWorkcell + " kinematics --robot " + path);
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("unknown key 'bogus_mm'"), std::string::npos) << r.err;
+  std::filesystem::remove_all(dir);
+}
+
+// A parameter file's text with the `key: ...` line replaced by `line`.
+std::string WithLine(const std::string& text, const std::string& key, const std::string& line) {
+  std::istringstream in(text);
+  std::string l, out;
+  while (std::getline(in, l)) out += (l.rfind(key + ":", 0) == 0 ? line : l) + "\n";
+  return out;
+}
+
+// Finite but absurd lengths (1.7e308 mm) overflowed the forward kinematics: the poses came out as
+// null in the JSON, exit 0. They are refused, the file and the key named, before any pose is printed.
+TEST(CliIntegrationTest, KinematicsRefusesAbsurdLengths) {
+  const std::string dir = MakeTempDir("kinematics_lengths_cli");
+  const auto robot = RunCommand(kWorkcell + " params rx130");
+  const auto laser = RunCommand(kWorkcell + " params laser");
+  ASSERT_EQ(robot.exit_code, 0) << robot.err;
+  ASSERT_EQ(laser.exit_code, 0) << laser.err;
+  std::ofstream(dir + "/robot.yaml") << WithLine(
+      WithLine(robot.out, "a3_mm", "a3_mm: {value: 1.7e308}"), "d4_mm", "d4_mm: {value: 1.7e308}");
+  std::ofstream(dir + "/laser.yaml") << WithLine(laser.out, "px_mm", "px_mm: {value: 1.7e308}");
+  auto r = RunCommand(kWorkcell + " kinematics --robot " + dir + "/robot.yaml --json");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.err.find(dir + "/robot.yaml:7: key 'a3_mm': 1.7e+308 mm is out of range"), std::string::npos) << r.err;
+  EXPECT_TRUE(r.out.empty()) << r.out;
+  r = RunCommand(kWorkcell + " kinematics --laser " + dir + "/laser.yaml --json");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.err.find("laser.yaml:4: key 'px_mm'"), std::string::npos) << r.err;
+  std::filesystem::remove_all(dir);
+}
+
+// A parameter file of another model (`model: laser` with the arm's keys) was read as the arm's. It is
+// refused, naming the file and the model expected; so is an arm file given as --laser.
+TEST(CliIntegrationTest, KinematicsRefusesAFileOfAnotherModel) {
+  const std::string dir = MakeTempDir("kinematics_model_cli");
+  const auto robot = RunCommand(kWorkcell + " params rx130");
+  const auto laser = RunCommand(kWorkcell + " params laser");
+  ASSERT_EQ(robot.exit_code, 0) << robot.err;
+  ASSERT_EQ(laser.exit_code, 0) << laser.err;
+  std::ofstream(dir + "/robot.yaml") << WithLine(robot.out, "model", "model: laser");
+  std::ofstream(dir + "/laser.yaml") << WithLine(laser.out, "model", "model: rx130");
+  auto r = RunCommand(kWorkcell + " kinematics --robot " + dir + "/robot.yaml --json");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.err.find(dir + "/robot.yaml:1: model 'laser' is not the one expected here (expected model: rx130 or "
+                             "rx130-laser-vicki)"),
+            std::string::npos)
+      << r.err;
+  r = RunCommand(kWorkcell + " kinematics --laser " + dir + "/laser.yaml --json");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.err.find("laser.yaml:1: model 'rx130' is not the one expected here (expected model: laser or"),
+            std::string::npos)
+      << r.err;
+  std::ofstream(dir + "/robot.yaml") << robot.out;
+  std::ofstream(dir + "/laser.yaml") << laser.out;
+  r = RunCommand(kWorkcell + " kinematics --robot " + dir + "/robot.yaml --laser " + dir + "/laser.yaml --json");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  std::filesystem::remove_all(dir);
+}
+
+// Numbers on the command line are decimal: "0x10" was read as 16 (by strtod for --joints-deg, by CLI11
+// for numeric options). Refused with the option named; the usual forms still read.
+TEST(CliIntegrationTest, NumbersOnTheCommandLineAreDecimal) {
+  auto r = RunCommand(kWorkcell + " kinematics --joints-deg 0x10,0,90,0,0,0 --json");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.err.find("--joints-deg: '0x10' is not a finite decimal number"), std::string::npos) << r.err;
+  r = RunCommand(kWorkcell + " kinematics --joints-deg=1,-1.5,1e-3,.5,0,0 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out).at("joints_deg"), nlohmann::json({1, -1.5, 1e-3, .5, 0, 0}));
+  const std::string dir = MakeTempDir("decimal_cli");
+  r = RunCommand(kWorkcell + " calibrate ptu --sim --poses 0x40 --out " + dir + "/ptu.yaml");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("--poses: '0x40' is not a decimal number"), std::string::npos) << r.err;
+  r = RunCommand(kWorkcell + " calibrate robot --sim --distance-mm 0x400 --out " + dir + "/robot.yaml");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("--distance-mm: '0x400' is not a decimal number"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/ptu.yaml"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/robot.yaml"));
+  std::filesystem::remove_all(dir);
+}
+
+// calibrate ptu --sim took 20 to 23 poses, acquired them all, and then the solve refused them (it needs
+// 24 observations per camera). Refused before the acquisition, the option and its range named.
+TEST(CliIntegrationTest, CalibratePtuRefusesTooFewPosesFirst) {
+  const std::string dir = MakeTempDir("ptu_poses_cli");
+  for (const char* poses : {"20", "23"}) {
+    const auto r = RunCommand(kWorkcell + " calibrate ptu --sim --poses " + poses + " --out " + dir + "/ptu.yaml");
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_NE(r.err.find(std::string("--poses: Value ") + poses + " not in range 24 to 10000"), std::string::npos)
+        << r.err;
+    EXPECT_EQ(r.err.find("PTU survey"), std::string::npos) << "no acquisition before the check: " << r.err;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir + "/ptu.yaml"));
+  std::filesystem::remove_all(dir);
+}
+
+// A --robot file that may not be read (permission denied) was a failed run (exit 1, no reason) while a
+// missing one was bad input (exit 2): both are bad input, with the reason.
+TEST(CliIntegrationTest, AnUnreadableRobotFileIsBadInput) {
+  if (::geteuid() == 0) GTEST_SKIP() << "root reads a file without read permission";
+  const std::string dir = MakeTempDir("unreadable_cli");
+  auto r = RunCommand(kWorkcell + " params rx130 --out " + dir + "/robot.yaml");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::filesystem::permissions(dir + "/robot.yaml", std::filesystem::perms::none);
+  r = RunCommand(kWorkcell + " kinematics --robot " + dir + "/robot.yaml --json");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find(dir + "/robot.yaml: cannot open for reading: Permission denied"), std::string::npos) << r.err;
   std::filesystem::remove_all(dir);
 }
 
@@ -326,6 +434,23 @@ TEST(CliIntegrationTest, FeaturesReportsAFailedOverlayOnItsImage) {
   std::filesystem::remove_all(dir);
 }
 
+// features with one image whose overlay cannot be written: the error is printed once (before: twice,
+// as the image's error and again as the run's).
+TEST(CliIntegrationTest, FeaturesPrintsAnOverlayErrorOnce) {
+  const std::string dir = MakeTempDir("features_overlay_once_cli");
+  WriteSquarePgm(dir + "/blocked.pgm", 64);
+  std::filesystem::create_directories(dir + "/out/blocked_features.png");
+  for (const std::string json : {"", " --json"}) {
+    const auto r = RunCommand(kWorkcell + " features " + dir + "/blocked.pgm --overlay " + dir + "/out" + json);
+    EXPECT_NE(r.exit_code, 0) << r.err;
+    const std::string message = "the overlay of " + dir + "/blocked.pgm: ";
+    const std::size_t first = r.err.find(message);
+    ASSERT_NE(first, std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find(message, first + 1), std::string::npos) << "printed twice: " << r.err;
+  }
+  std::filesystem::remove_all(dir);
+}
+
 // features --laser-spot: the spot of a short-exposure image (a Gaussian spot on a dark, slightly noisy
 // background) is found at its centre; an image without one says no_spot.
 TEST(CliIntegrationTest, FeaturesFindsTheLaserSpot) {
@@ -403,6 +528,49 @@ TEST(CliIntegrationTest, ReconstructWritesAnOverlayPerView) {
     EXPECT_EQ(r.err.find("reconstruct: 2 views"), std::string::npos) << "no reconstruction before the check: " << r.err;
   }
   EXPECT_EQ(FileText(dir + "/views.yaml"), views_text);
+  fs::remove_all(dir);
+}
+
+// reconstruct: a K whose principal point is far from the image's middle (here the K of a 1280 x 960
+// camera with 640 x 480 images, and a principal point outside the image) is refused naming the views
+// file, the view and the image (before: reconstructed with it without a word).
+TEST(CliIntegrationTest, ReconstructRefusesAKForAnotherImageSize) {
+  namespace fs = std::filesystem;
+  const std::string dir = MakeTempDir("reconstruct_k_cli");
+  auto r = RunCommand(kWorkcell + " sim render --out " + dir);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  auto views = [&dir](double scale, double cx_shift) {
+    std::ofstream out(dir + "/views.yaml");
+    out << "views:\n";
+    for (const std::string side : {"left", "right"}) {
+      std::ifstream truth(dir + "/" + side + ".json");
+      const auto camera = nlohmann::json::parse(truth).at("camera");
+      const auto& k = camera.at("intrinsics");
+      const double fx = k[0].get<double>() * scale, fy = k[1].get<double>() * scale;
+      const double cx = (k[2].get<double>() + 0.5) * scale - 0.5 + cx_shift,
+                   cy = (k[3].get<double>() + 0.5) * scale - 0.5;
+      const nlohmann::json kk = {fx, 0, cx, 0, fy, cy, 0, 0, 1};
+      out << "  - {image: " << side << ".png, K: " << kk.dump()
+          << ", cam_from_world: " << camera.at("cam_from_world").dump() << "}\n";
+    }
+  };
+  views(2.0, 0.0);  // K for twice the size: the principal point in the image's corner
+  r = RunCommand(kWorkcell + " reconstruct --views " + dir + "/views.yaml --json");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find(dir +
+                       "/views.yaml:2: views[0].K: the principal point (639.5, 479.5) px is not near the middle "
+                       "of the 640 x 480 px image " +
+                       dir + "/left.png"),
+            std::string::npos)
+      << r.err;
+  EXPECT_TRUE(r.out.empty()) << r.out;
+  views(1.0, 5000.0);
+  r = RunCommand(kWorkcell + " reconstruct --views " + dir + "/views.yaml --json");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("is K for another image size?"), std::string::npos) << r.err;
+  views(1.0, 0.0);
+  r = RunCommand(kWorkcell + " reconstruct --views " + dir + "/views.yaml --json");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
   fs::remove_all(dir);
 }
 

@@ -188,7 +188,8 @@ void AddCalibratePtuCommand(CliApp& cli) {
   ptu->add_option("--noise-px", o->noise_px, "--sim: geometric spot noise per axis")->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   ptu->add_option("--lens-k1-k2", o->lens_k1_k2, "--sim: the twin lens' radial distortion, 'k1,k2'");
-  ptu->add_option("--poses", o->poses, "--sim: calibration poses (§6.4.4: 60)")->check(CLI::Range(20, 10000))
+  ptu->add_option("--poses", o->poses, "--sim: calibration poses (§6.4.4: 60)")
+      ->check(CLI::Range(calib::kPtuMinObservationsPerCamera, 10000))
       ->capture_default_str();
   ptu->add_option("--validation-poses", o->validation_poses, "--sim: held-out poses")->check(CLI::Range(0, 10000))
       ->capture_default_str();

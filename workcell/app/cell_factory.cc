@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "shared/calib/ptu/ptu_calibration.h"
 #include "shared/hal/camera.h"
 #include "shared/hal/clock.h"
 #include "shared/sim/workcell/workcell_twin.h"
@@ -235,8 +236,10 @@ JobSpec PtuJob(unsigned seed) {
     }
     if (args.contains("poses")) {
       const auto& p = args.at("poses");
-      if (!p.is_number_integer() || p.get<int64_t>() < 20 || p.get<int64_t>() > 10000) {
-        return InvalidArgument("calibrate-ptu: 'poses' must be an integer in [20, 10000]");
+      if (!p.is_number_integer() || p.get<int64_t>() < calib::kPtuMinObservationsPerCamera ||
+          p.get<int64_t>() > 10000) {
+        return InvalidArgument(fmt::format("calibrate-ptu: 'poses' must be an integer in [{}, 10000]",
+                                           calib::kPtuMinObservationsPerCamera));
       }
     }
     return Status::Ok();

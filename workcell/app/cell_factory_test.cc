@@ -213,6 +213,7 @@ TEST_F(CellTest, BadJobArgumentsAreRefusedNamingTheField) {
       {"calibrate-robot2", {{"speed", 1}}},
       {"calibrate-ptu", {{"image", "yes"}}},
       {"calibrate-ptu", {{"poses", 3}}},
+      {"calibrate-ptu", {{"poses", 20}}},  // fewer than the solve's 24 (before: acquired, then refused)
       {"calibrate-rail", nlohmann::json::array()},
   };
   for (const auto& [job, args] : bad) {

@@ -373,7 +373,9 @@ Status RunFeatures(const FeaturesCliOptions& o) {
     }
     if (!image_error.ok()) {
       ++failed;
-      spdlog::error("{}", image_error.message());
+      if (o.images.size() > 1) {
+        spdlog::error("{}", image_error.message());  // the run's summary below names only the first
+      }
       if (first_error.ok()) first_error = image_error;
     }
     if (o.json) {

@@ -29,6 +29,9 @@ nlohmann::json Vec(const Vec3d& v) { return {v.x(), v.y(), v.z()}; }
 Status RunKinematics(const KinematicsOptions& o) {
   ParamSet robot = Rx130Nominal();
   ParamSet laser = LaserNominal();
+  // A `calibrate robot` output's model (procedures/calibration_files.cc); a file of another model (a
+  // laser file as --robot) is refused.
+  const std::string calibrated_model = "rx130-laser-vicki";
   // Both files may be `calibrate robot` outputs, which hold the arm, the laser, the point, the
   // rail-direction and the run's keys: each read skips the others' keys.
   const std::vector<std::string> run_keys = {"model",
@@ -48,6 +51,7 @@ Status RunKinematics(const KinematicsOptions& o) {
   if (!o.robot_file.empty()) {
     ParamFileOptions pfo;
     pfo.extra_keys = run_keys;
+    pfo.models = {"rx130", calibrated_model};
     for (const ParamSpec& spec : LaserParamSpecs()) pfo.extra_keys.push_back(spec.Key());
     IDI_ASSIGN_OR_RETURN(robot, LoadParamFile(o.robot_file, Rx130ParamSpecs(), pfo));
   }
@@ -56,6 +60,7 @@ Status RunKinematics(const KinematicsOptions& o) {
   std::string laser_source = "nominal";
   ParamFileOptions lfo;
   lfo.extra_keys = run_keys;
+  lfo.models = {"laser", calibrated_model};
   for (const ParamSpec& spec : Rx130ParamSpecs()) lfo.extra_keys.push_back(spec.Key());
   if (!o.laser_file.empty()) {
     IDI_ASSIGN_OR_RETURN(laser, LoadParamFile(o.laser_file, LaserParamSpecs(), lfo));
@@ -68,6 +73,7 @@ Status RunKinematics(const KinematicsOptions& o) {
       root = YAML::Node();  // read above already; cannot fail differently here
     }
     if (root.IsMap() && root["theta_x_deg"]) {
+      lfo.models.clear();  // the --robot file's model was checked above
       IDI_ASSIGN_OR_RETURN(laser, LoadParamFile(o.robot_file, LaserParamSpecs(), lfo));
       laser_source = o.robot_file;
     }

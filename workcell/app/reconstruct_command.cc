@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 #include <yaml-cpp/yaml.h>
 
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <map>
@@ -83,6 +84,23 @@ Result<std::vector<StructureView>> LoadViews(const std::string& path, std::vecto
     IDI_ASSIGN_OR_RETURN(const auto k, Numbers(v["K"], 9, where + ".K"));
     if (k[1] != 0 || k[3] != 0 || k[6] != 0 || k[7] != 0 || k[8] != 1 || !(k[0] > 0) || !(k[4] > 0)) {
       return InvalidArgument(where + ".K: expected [fx, 0, cx, 0, fy, cy, 0, 0, 1] with fx, fy > 0");
+    }
+    // The principal point of a real lens and sensor lies near the image's middle (a few percent off at
+    // most). One more than a quarter of the image off its centre (pixel centres at integers) is a K for
+    // another image size (1280 x 960 on 640 x 480 images puts it in a corner) or a wrong K.
+    const double centre_x = 0.5 * (sv.image.cols - 1), centre_y = 0.5 * (sv.image.rows - 1);
+    if (!(std::abs(k[2] - centre_x) <= 0.25 * sv.image.cols && std::abs(k[5] - centre_y) <= 0.25 * sv.image.rows)) {
+      return InvalidArgument(fmt::format(
+          "{}.K: the principal point ({}, {}) px is not near the middle of the {} x {} px image {} (expected within a "
+          "quarter of its size of ({}, {})): is K for another image size?",
+          where,
+          k[2],
+          k[5],
+          sv.image.cols,
+          sv.image.rows,
+          image_path.string(),
+          centre_x,
+          centre_y));
     }
     sv.camera.width = sv.image.cols;
     sv.camera.height = sv.image.rows;

@@ -8,8 +8,10 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "shared/kinematics/rx130.h"
 #include "shared/runtime/param_file.h"
 #include "shared/util/atomic_file.h"
+#include "shared/util/units.h"
 
 namespace idi::workcell {
 namespace {
@@ -79,6 +81,36 @@ std::string Num(double v) {
   return s.str();
 }
 
+// How far past its range a joint reading may be. The controller stops each joint at its limit, so a
+// reading well outside (9999 deg, radians read as degrees, another zero convention) is not one the arm
+// can give: it is refused, not dropped later as an outlier. The margin allows for limits rounded on the
+// data sheet. (Rx130JointLimits' controller-to-model offset is not yet checked on a real cell: if it is
+// wrong, good readings are refused here, naming the joint and the range.)
+constexpr double kJointReadingMarginDeg = 5.0;
+
+// Refuses joint readings (degrees; columns `prefix`j1_deg..j6_deg) outside the RX-130's range by more
+// than kJointReadingMarginDeg, naming the file, the line and the column.
+Status CheckJointReadings(const std::string& path, int line, const std::string& prefix, const double* deg) {
+  const JointLimits limits = Rx130JointLimits();
+  for (std::size_t j = 0; j < static_cast<std::size_t>(kRx130Joints); ++j) {
+    const double min_deg = RadToDeg(limits.min[j]), max_deg = RadToDeg(limits.max[j]);
+    if (deg[j] >= min_deg - kJointReadingMarginDeg && deg[j] <= max_deg + kJointReadingMarginDeg) continue;
+    return OutOfRange(fmt::format(
+        "{}:{}: column '{}j{}_deg': {} deg is outside joint {}'s range [{:.1f}, {:.1f}] deg (by more than {:.0f} "
+        "deg): not a reading the arm can give",
+        path,
+        line,
+        prefix,
+        j + 1,
+        Num(deg[j]),
+        j + 1,
+        min_deg,
+        max_deg,
+        kJointReadingMarginDeg));
+  }
+  return Status::Ok();
+}
+
 void EmitStats(YAML::Emitter& e, const std::vector<std::pair<std::string, double>>& stats) {
   e << YAML::Key << "statistics" << YAML::Value << YAML::BeginMap;
   for (const auto& [k, v] : stats) e << YAML::Key << k << YAML::Value << v;
@@ -104,6 +136,7 @@ Result<std::vector<calib::AimReading>> ReadRobotObservations(const std::string& 
     if (v[0] != 1.0 && v[0] != 2.0) {
       return ParseError(path + ":" + std::to_string(line) + ": column 'set' must be 1 or 2, got " + Num(v[0]));
     }
+    IDI_RETURN_IF_ERROR(CheckJointReadings(path, line, "", &v[1]));
     calib::AimReading r;
     r.set = static_cast<int>(v[0]);
     r.q = JointsFromDeg({v[1], v[2], v[3], v[4], v[5], v[6]});
@@ -129,6 +162,8 @@ Result<std::vector<calib::RailReading>> ReadRailObservations(const std::string& 
   IDI_ASSIGN_OR_RETURN(const auto rows, ReadCsv(path, kRailCsvHeader));
   std::vector<calib::RailReading> out;
   for (const auto& [line, v] : rows) {
+    IDI_RETURN_IF_ERROR(CheckJointReadings(path, line, "r1_", &v[0]));
+    IDI_RETURN_IF_ERROR(CheckJointReadings(path, line, "r2_", &v[7]));
     calib::RailReading r;
     r.q1 = JointsFromDeg({v[0], v[1], v[2], v[3], v[4], v[5]});
     r.rail1_mm = v[6];
@@ -171,7 +206,7 @@ Status WriteRobotCalibration(const std::string& path,
   YAML::Emitter e;
   e.SetDoublePrecision(12);
   e << YAML::BeginMap;
-  e << YAML::Key << "model" << YAML::Value << "rx130-laser-vicki";
+  e << YAML::Key << "model" << YAML::Value << kRobotCalibrationModel;
   if (sim_seed) e << YAML::Key << "sim_seed" << YAML::Value << *sim_seed;
   e << YAML::Key << "method" << YAML::Value << calib::MethodName(data.method);
   e << YAML::Key << "distance_mm" << YAML::Value << data.distance_mm;
@@ -221,6 +256,7 @@ Result<std::optional<unsigned>> RobotCalibrationSimSeed(const std::string& path)
 Result<calib::ArmModel> LoadRobotCalibration(const std::string& path) {
   ParamFileOptions o;
   o.extra_keys = {"model", "comment", "method", "distance_mm", "statistics", "correlation", "sim_seed"};
+  o.models = {kRobotCalibrationModel};
   IDI_ASSIGN_OR_RETURN(const ParamSet p, LoadParamFile(path, calib::RobotCalibrationSpecs(), o));
   calib::ArmModel m;
   m.robot = p.Slice(0, kRx130ParamCount);
@@ -276,7 +312,7 @@ Status WriteRailCalibration(const std::string& path, const calib::RailCalibratio
   YAML::Emitter e;
   e.SetDoublePrecision(12);
   e << YAML::BeginMap;
-  e << YAML::Key << "model" << YAML::Value << "robot-to-robot";
+  e << YAML::Key << "model" << YAML::Value << kRailCalibrationModel;
   EmitParamSet(e, r.psi);
   EmitStats(e, {{"readings_used", static_cast<double>(r.readings_used)},
                 {"outliers", static_cast<double>(r.outliers.size())},
@@ -293,6 +329,7 @@ Status WriteRailCalibration(const std::string& path, const calib::RailCalibratio
 Result<std::array<double, kRobotToRobotParamCount>> LoadRailCalibration(const std::string& path) {
   ParamFileOptions o;
   o.extra_keys = {"model", "comment", "statistics"};
+  o.models = {kRailCalibrationModel};
   IDI_ASSIGN_OR_RETURN(const ParamSet p, LoadParamFile(path, RobotToRobotParamSpecs(), o));
   std::array<double, kRobotToRobotParamCount> psi{};
   for (std::size_t i = 0; i < psi.size(); ++i) psi[i] = p.value(i);

@@ -17,6 +17,10 @@
 
 namespace idi::workcell {
 
+// The `model` of the result files (a loader refuses a file of another model).
+inline constexpr const char* kRobotCalibrationModel = "rx130-laser-vicki";
+inline constexpr const char* kRailCalibrationModel = "robot-to-robot";
+
 inline constexpr const char* kRobotCsvHeader = "set,j1_deg,j2_deg,j3_deg,j4_deg,j5_deg,j6_deg";
 inline constexpr const char* kRailCsvHeader =
     "r1_j1_deg,r1_j2_deg,r1_j3_deg,r1_j4_deg,r1_j5_deg,r1_j6_deg,r1_rail_mm,"

@@ -491,5 +491,43 @@ TEST_F(CalibrateCommandTest, BadFilesFailWithExitCode2) {
   EXPECT_EQ(Run({"calibrate", "rtu", "--observations", P("few.csv"), "--out", P("x.yaml"), "-q"}), 2);
 }
 
+// A joint reading the arm cannot give (far outside its range) is refused with the file, the line and
+// the column named, exit 2 (before: read, and the calibration dropped it as an outlier without a word
+// about the file). Readings a little past a limit (within the margin) are read.
+TEST_F(CalibrateCommandTest, ImpossibleJointReadingsAreRefused) {
+  {
+    std::ofstream f(P("robot.csv"));
+    f << kRobotCsvHeader << "\n1,10,-40,80,0,30,0\n2,9999,-40,80,0,30,0\n";
+    std::ofstream edge(P("edge.csv"));
+    edge << kRobotCsvHeader << "\n1,162,-40,80,0,30,0\n2,-10,-40,80,0,-107,272\n";
+    std::ofstream rail(P("rail.csv"));
+    rail << kRailCsvHeader << "\n10,-40,80,0,30,0,0,10,-40,80,0,30,0,0\n10,-40,80,0,30,0,0,10,-40,80,0,-360,0,0\n";
+  }
+  const auto robot = ReadRobotObservations(P("robot.csv"));
+  ASSERT_FALSE(robot.ok());
+  EXPECT_EQ(robot.status().code(), StatusCode::kOutOfRange);
+  EXPECT_NE(robot.status().message().find(P("robot.csv") + ":3: column 'j1_deg': 9999 deg is outside joint 1's range "
+                                                           "[-160.0, 160.0] deg"),
+            std::string::npos)
+      << robot.status().message();
+  const auto edge = ReadRobotObservations(P("edge.csv"));
+  EXPECT_TRUE(edge.ok()) << edge.status().ToString();
+  const auto rail = ReadRailObservations(P("rail.csv"));
+  ASSERT_FALSE(rail.ok());
+  EXPECT_NE(rail.status().message().find(P("rail.csv") + ":3: column 'r2_j5_deg': -360 deg"), std::string::npos)
+      << rail.status().message();
+  EXPECT_EQ(Run({"calibrate",
+                 "robot",
+                 "--observations",
+                 P("robot.csv"),
+                 "--distance-mm",
+                 "1000",
+                 "--out",
+                 P("x.yaml"),
+                 "-q"}),
+            2);
+  EXPECT_FALSE(std::filesystem::exists(P("x.yaml")));
+}
+
 }  // namespace
 }  // namespace idi::workcell

@@ -134,6 +134,15 @@ Status PtuProcedureOptions::Check() const {
     return InvalidArgument("PTU procedure: need survey_poses >= 10 and survey_candidates >= survey_poses");
   }
   IDI_RETURN_IF_ERROR(plan.Check());
+  // Each calibration pose gives each camera one observation at most: fewer poses than the solve needs
+  // would fail only after the whole acquisition.
+  if (plan.poses < calibration.min_observations_per_camera) {
+    return InvalidArgument(
+        fmt::format("PTU procedure: {} calibration poses, at least {} are needed (one observation "
+                    "per camera each; §6.4.4 uses 60)",
+                    plan.poses,
+                    calibration.min_observations_per_camera));
+  }
   return calibration.Check();
 }
 

@@ -137,6 +137,23 @@ TEST(PtuProcedure, AMissingSpotInTheCalibrationPassStopsTheRun) {
   EXPECT_NE(r.status().message().find("PTU calibration images: pose"), std::string::npos) << r.status().message();
 }
 
+// Fewer calibration poses than the solve needs observations per camera (24) are refused before the
+// arm moves (before: 20 to 23 poses were acquired, then the solve refused them).
+TEST(PtuProcedure, TooFewPosesAreRefusedBeforeTheAcquisition) {
+  PtuTwin twin(PtuTwinOptions{});
+  ASSERT_TRUE(twin.AimLaser().ok());
+  PtuDevices dev = twin.Devices();
+  PtuProcedureOptions o = SmallPtuRun(twin);
+  o.plan.poses = 20;
+  const auto r = RunPtuCalibrationProcedure(dev, o);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(r.status().message().find("PTU procedure: 20 calibration poses, at least 24 are needed"), std::string::npos)
+      << r.status().message();
+  o.plan.poses = calib::kPtuMinObservationsPerCamera;
+  EXPECT_TRUE(o.Check().ok()) << o.Check().ToString();
+}
+
 TEST(PtuProcedure, MissingDevicesAreReported) {
   PtuDevices none;
   PtuProcedureOptions o;

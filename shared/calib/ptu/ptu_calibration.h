@@ -56,13 +56,17 @@ struct PtuCameraModel {
   std::optional<Vec2d> Project(const TcfPose& tcf, double pan_rad, double tilt_rad, const Vec3d& point_mm) const;
 };
 
+// The fewest observations per camera CalibratePtu takes by default (PtuCalibrationOptions), so the
+// fewest calibration poses an acquisition may plan.
+inline constexpr int kPtuMinObservationsPerCamera = 24;
+
 struct PtuCalibrationOptions {
   bool estimate_distortion = false;  // also estimate k1, k2 (p1, p2, k3 stay at their start values)
   bool shared_point = true;          // one point for both cameras (false: one per camera)
   double robust_scale_px = 1.0;      // Cauchy loss scale of the robust stage
   double outlier_sigmas = 5.0;       // rejection threshold in robust sigmas (of the per-axis error)
   double outlier_floor_px = 0.5;     // never reject an error below this
-  int min_observations_per_camera = 24;
+  int min_observations_per_camera = kPtuMinObservationsPerCamera;
   int max_iterations = 200;          // per stage
   PtuRange range;
   std::optional<Vec3d> initial_point_mm;  // default: triangulated from the start model's rays
