@@ -182,20 +182,29 @@ void EmitParamSet(YAML::Emitter& out, const ParamSet& set) {
 }
 
 Status CheckParamsWritable(const ParamSet& set, const std::string& where) {
-  std::string values, stds;
+  std::string values, stds, lengths;
   for (std::size_t i = 0; i < set.size(); ++i) {
-    const std::string key = set.spec(i).Key();
+    const ParamSpec& spec = set.spec(i);
+    const std::string key = spec.Key();
+    const bool length = spec.unit == Unit::kMillimetre || spec.unit == Unit::kMetre;
+    const double max = spec.unit == Unit::kMillimetre ? kMaxParamLengthM * 1000.0 : kMaxParamLengthM;
     if (!std::isfinite(set.value(i)))
       values += (values.empty() ? "" : ", ") + key;
     else if (std::isinf(set.stddev(i)))
       stds += (stds.empty() ? "" : ", ") + key;
+    else if (length && std::abs(set.file_value(i)) > max)  // the loader would refuse it (CheckLength)
+      lengths += (lengths.empty() ? "" : ", ") + key;
   }
-  if (values.empty() && stds.empty()) return Status::Ok();
+  if (values.empty() && stds.empty() && lengths.empty()) return Status::Ok();
   std::string what;
   if (!values.empty()) what = "the values of " + values + " are not finite numbers";
   if (!stds.empty()) {
     what += (what.empty() ? "" : "; ") + std::string("the data do not determine ") + stds +
             " (their standard deviation is infinite)";
+  }
+  if (!lengths.empty()) {
+    what += (what.empty() ? "" : "; ") + ("the lengths " + lengths + " are beyond ") +
+            std::to_string(static_cast<int>(kMaxParamLengthM)) + " m (a solve that diverged?)";
   }
   return FailedPrecondition(where + ": not written: " + what);
 }

@@ -43,10 +43,10 @@ Result<ParamSet> LoadParamFile(const std::string& path, const std::vector<ParamS
 
 // Emits `set` as YAML map entries (with std when known) into an emitter that is inside a map.
 void EmitParamSet(YAML::Emitter& out, const ParamSet& set);
-// Whether `set` can go into a parameter file that LoadParamFile reads back: every value finite, and
-// every standard deviation known either finite or left out. FailedPrecondition naming the parameters
-// otherwise, `where` (the file) starting the message: a parameter whose std is infinite is one the data
-// did not determine (a calibration from too little motion, a distance given in metres for millimetres).
+// Whether `set` can go into a parameter file that LoadParamFile reads back: every value finite, every
+// length within kMaxParamLengthM, and every standard deviation known either finite or left out. FailedPrecondition
+// naming the parameters otherwise, `where` (the file) starting the message: a parameter whose std is infinite is one
+// the data did not determine (a calibration from too little motion, a distance given in metres for millimetres).
 Status CheckParamsWritable(const ParamSet& set, const std::string& where);
 // Writes `set` (plus a leading `model: <model>` line) atomically, after CheckParamsWritable.
 Status SaveParamFile(const std::string& path, const ParamSet& set, const std::string& model);

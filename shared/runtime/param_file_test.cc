@@ -59,8 +59,9 @@ TEST_F(ParamFileTest, RoundTripKeepsValuesAndStd) {
   EXPECT_TRUE(std::isnan(r->stddev(kA2)));
 }
 
-// What the loader would refuse is not written: a value that is not finite, or a parameter whose std
-// is infinite (the data did not determine it). An unknown std (NaN) is left out, as before.
+// What the loader would refuse is not written: a value that is not finite, a length beyond the
+// loader's bound, or a parameter whose std is infinite (the data did not determine it). An unknown std (NaN) is left
+// out, as before.
 TEST_F(ParamFileTest, AnUndeterminedParameterIsNotWritten) {
   ParamSet robot = Rx130Nominal();
   robot.set_stddev(kA3, std::numeric_limits<double>::infinity());
@@ -77,6 +78,12 @@ TEST_F(ParamFileTest, AnUndeterminedParameterIsNotWritten) {
   st = SaveParamFile(path, robot, "rx130");
   EXPECT_NE(st.message().find("the values of a2_mm are not finite"), std::string::npos) << st.ToString();
   robot.set_value(kA2, 0.0);
+  // A length the loader refuses (beyond kMaxParamLengthM; 1e6 in either internal unit).
+  robot.set_value(kA3, 1e6);
+  st = SaveParamFile(path, robot, "rx130");
+  EXPECT_NE(st.message().find("the lengths a3_mm are beyond 100 m"), std::string::npos) << st.ToString();
+  EXPECT_FALSE(fs::exists(path));
+  robot.set_value(kA3, Rx130Nominal().value(kA3));
   robot.set_stddev(kA2, std::numeric_limits<double>::quiet_NaN());
   ASSERT_TRUE(SaveParamFile(path, robot, "rx130").ok());
   EXPECT_TRUE(LoadParamFile(path, Rx130ParamSpecs()).ok());

@@ -273,6 +273,8 @@ Status CheckDistinctFiles(const std::vector<NamedFile>& inputs,
 Result<std::string> ReadFile(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) {
+    // exists() is false too when a folder on the way may not be searched: say so.
+    if (ec == std::errc::permission_denied) return InvalidArgument(path + ": cannot open for reading: " + ec.message());
     return NotFound(path + ": no such file");
   }
   if (std::filesystem::is_directory(path, ec)) {

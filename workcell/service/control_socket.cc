@@ -85,10 +85,11 @@ Status MakeSocketFolder(const std::string& socket_path) {
     if (p == p.parent_path()) break;
   }
   for (auto it = missing.rbegin(); it != missing.rend(); ++it) {
-    if (::mkdir(it->c_str(), 0755) != 0 && errno != EEXIST) {
+    if (::mkdir(it->c_str(), 0755) == 0) {
+      ::chmod(it->c_str(), 0755);  // not through the umask (see the socket's mode below)
+    } else if (errno != EEXIST) {
       return IoError(socket_path + ": cannot make the control socket's folder " + it->string() + ": " + Errno());
     }
-    ::chmod(it->c_str(), 0755);  // not through the umask (see the socket's mode below)
   }
   if (!fs::is_directory(folder, ec)) {
     return IoError(socket_path + ": the control socket's folder " + folder.string() + " is not a folder");
