@@ -3,12 +3,14 @@
 #include "rmp/app/rmp_commands.h"
 
 #include <gtest/gtest.h>
+#include <poll.h>
 #include <sys/socket.h>
 #include <sys/un.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -19,6 +21,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <thread>
 #include <tuple>
 #include <utility>
 #include <vector>
@@ -522,6 +525,9 @@ TEST_F(RmpCommandsTest, RunNamesItsDriveLogFolderUniquely) {
 }
 
 // The service's notifications (sd_notify) to a socket of the test's own, while it lives.
+// A stand-in for systemd's notification socket. Like systemd it reads every message as it comes: a
+// datagram socket nobody reads fills after a few messages (net.unix.max_dgram_qlen, 10 by default), and
+// sd_notify's send then blocks the service.
 class NotifySocket {
  public:
   explicit NotifySocket(const std::string& path) : path_(path) {
@@ -531,31 +537,43 @@ class NotifySocket {
     std::snprintf(addr.sun_path, sizeof(addr.sun_path), "%s", path.c_str());
     bound_ = fd_ >= 0 && ::bind(fd_, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) == 0;
     ::setenv("NOTIFY_SOCKET", path.c_str(), 1);
+    if (bound_) reader_ = std::thread([this] { Read(); });
   }
   ~NotifySocket() {
     ::unsetenv("NOTIFY_SOCKET");
+    stop_ = true;
+    if (reader_.joinable()) reader_.join();
     if (fd_ >= 0) ::close(fd_);
     ::unlink(path_.c_str());
   }
   NotifySocket(const NotifySocket&) = delete;
   NotifySocket& operator=(const NotifySocket&) = delete;
   bool bound() const { return bound_; }
-  // Whether READY=1 came since the last call.
+  // Whether READY=1 came since the last call (a command's notifications are all read by the time it
+  // returns: they are sent before it returns, and read within the reader's next poll).
   bool Ready() {
-    bool ready = false;
-    char buf[512];
-    ssize_t n;
-    while ((n = ::recv(fd_, buf, sizeof(buf) - 1, 0)) > 0) {
-      buf[n] = 0;
-      if (std::strstr(buf, "READY=1") != nullptr) ready = true;
-    }
-    return ready;
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+    return ready_.exchange(false);
   }
 
  private:
+  void Read() {
+    char buf[512];
+    while (!stop_) {
+      pollfd p{fd_, POLLIN, 0};
+      if (::poll(&p, 1, 20) <= 0) continue;
+      ssize_t n;
+      while ((n = ::recv(fd_, buf, sizeof(buf) - 1, 0)) > 0) {
+        buf[n] = 0;
+        if (std::strstr(buf, "READY=1") != nullptr) ready_ = true;
+      }
+    }
+  }
   std::string path_;
   int fd_ = -1;
   bool bound_ = false;
+  std::atomic<bool> ready_{false}, stop_{false};
+  std::thread reader_;
 };
 
 // A --record folder that cannot take the drive log is refused as an argument (exit 2) before the service
