@@ -74,6 +74,10 @@ Status RunFov(const FovOptions& o) {
 
 }  // namespace
 
+namespace {
+constexpr double kMinFxPx = 50.0;
+}  // namespace
+
 Status FovOptions::Check() const {
   // Non-finite values went through to a footprint "from 1000000000.00 m to -1000000000.00 m".
   IDI_RETURN_IF_ERROR(CheckRange("--height-m", height_m, 0.0, true, 100.0, false));
@@ -81,7 +85,9 @@ Status FovOptions::Check() const {
   IDI_RETURN_IF_ERROR(CheckRange("--baseline-m", baseline_m, 0.0, false, 100.0, false));
   IDI_RETURN_IF_ERROR(CheckRange("--forward-m", forward_m, -100.0, false, 100.0, false));
   IDI_RETURN_IF_ERROR(CheckRange("--toe-in-deg", toe_in_deg, -89.0, true, 89.0, true));
-  return CheckRange("--fx-px", fx_px, 0.0, true, 1e6, false);
+  // A rectilinear (pinhole) lens on a 640 px wide image: below 50 px the field of view would pass 162 deg
+  // across, which no such lens gives (1e-300 was taken, and neither camera "saw" the ground).
+  return CheckRange("--fx-px", fx_px, kMinFxPx, false, 1e6, false);
 }
 
 Result<std::vector<CameraGroundView>> ComputeFov(const FovOptions& o) {
@@ -129,7 +135,7 @@ void AddFovCommand(CliApp& cli) {
   cmd->add_option("--forward-m", o->forward_m, "cameras ahead of the wheel axle, [-100, 100]")->capture_default_str();
   cmd->add_option("--toe-in-deg", o->toe_in_deg, "each camera turned towards the centre line, (-89, 89)")
       ->capture_default_str();
-  cmd->add_option("--fx-px", o->fx_px, "focal length in pixels (640x480 images), (0, 1e6]")->capture_default_str();
+  cmd->add_option("--fx-px", o->fx_px, "focal length in pixels (640x480 images), [50, 1e6]")->capture_default_str();
   cmd->add_flag("--json", o->json, "print JSON on stdout");
 }
 

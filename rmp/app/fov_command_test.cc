@@ -40,6 +40,8 @@ TEST(FovCommandTest, RefusesNonFiniteAndNonsensicalGeometry) {
                                                                                       {"--height-m", "1e9"},
                                                                                       {"--baseline-m", "-0.3"},
                                                                                       {"--fx-px", "-600"},
+                                                                                      {"--fx-px", "1e-300"},
+                                                                                      {"--fx-px", "49"},
                                                                                       {"--pitch-down-deg", "90"},
                                                                                       {"--toe-in-deg", "120"}}) {
     EXPECT_EQ(RunFovCli({option, value}), kExitBadInput) << option << " " << value;

@@ -5,10 +5,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <optional>
 
 #include "rmp/segway/rmp_codec.h"
 #include "shared/replay/can_log_bus.h"
+#include "shared/util/atomic_file.h"
 
 namespace idi::rmp {
 namespace {
@@ -40,6 +42,13 @@ class LogFrames final : public FrameSource {
   std::size_t next_ = 0;
 };
 
+// The number of the last line of the drive log's can.log (its torn one, which has no newline), for the
+// warning: the reader drops it without counting (read again only then). 0: unreadable.
+int CanLogLastLine(const std::string& dir) {
+  const auto text = ReadFile((std::filesystem::path(dir) / replay::kDriveLogCanFile).string());
+  return text.ok() ? static_cast<int>(std::count(text->begin(), text->end(), '\n')) + 1 : 0;
+}
+
 }  // namespace
 
 Result<ReplayResult> RunReplay(const ReplayOptions& o) {
@@ -54,13 +63,17 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o, const replay::DriveLog& l
   if (log.can.empty()) return InvalidArgument(o.dir + ": the drive log's can.log is empty");
   // A recording cut by a power loss replays up to the tear.
   if (log.recording.truncated) {
-    spdlog::warn("{}/events.jsonl:{}: the last line has no newline (the recorder stopped mid-line?); skipped",
-                 o.dir,
-                 log.recording.truncated_line);
+    spdlog::warn(
+        "{}/events.jsonl:{}: the last line is torn (no newline, or NUL bytes only: the recorder stopped "
+        "mid-line?); skipped",
+        o.dir,
+        log.recording.truncated_line);
   }
   if (!log.can_torn_last_line.empty()) {
-    spdlog::warn("{}: can.log ends in a line without its newline (the recorder stopped mid-line?); dropped: '{}'",
+    spdlog::warn("{}/{}:{}: the last line has no newline (the recorder stopped mid-line?); dropped: '{}'",
                  o.dir,
+                 replay::kDriveLogCanFile,
+                 CanLogLastLine(o.dir),
                  log.can_torn_last_line);
   }
   // The pipeline as it was configured when the log was recorded.

@@ -74,6 +74,17 @@ void PrintReport(const RunReport& r, bool json) {
       r.end);
 }
 
+// The end of a replay, `replay`'s and `run`'s with the replay backend: the report, then (text output) the
+// comparison line. Commands not reproduced are a failed run (exit 1): the replay ran, and its result is
+// that the log is not reproduced. `what` starts the error message.
+Status ReportReplay(const ReplayResult& res, const std::string& what, bool json) {
+  PrintReport(res.report, json);
+  const std::string comparison = ReplayComparisonSummary(res);
+  if (!json) std::cout << comparison << "\n";
+  if (!res.commands_reproduced()) return FailedPrecondition(what + ": " + comparison);
+  return Status::Ok();
+}
+
 // A check of an output before the run: when it fails nothing ran, so the command line is at fault
 // (InvalidArgument, exit 2) whatever the check's own code (an unwritable folder is an IoError).
 Status BeforeTheRun(const Status& st) {
@@ -157,6 +168,46 @@ Status CheckReplayFiles(const ReplayOptions& o, const replay::DriveLog& log) {
   return BeforeTheRun(CheckOutputFile(o.can_log, "--can-log"));
 }
 
+// The drive log folder of `run` and `sim`, made before the run (and before the service says it is ready).
+// `made`: by this run (removed again when the run leaves it empty, so that a service systemd restarts does
+// not leave one per attempt).
+struct RecordFolder {
+  std::string path;  // empty: none
+  bool made = false;
+  ~RecordFolder() {
+    std::error_code ec;
+    if (made && std::filesystem::is_empty(path, ec) && !ec) std::filesystem::remove(path, ec);
+  }
+  RecordFolder() = default;
+  RecordFolder(const RecordFolder&) = delete;
+  RecordFolder& operator=(const RecordFolder&) = delete;
+};
+
+// --record of `command` (run, sim): a new or empty folder, made here (its parents too). One that holds
+// files or cannot be made is the command line's fault (exit 2), told before the run rather than when the
+// recorder starts.
+Status MakeRecordFolder(const std::string& command, const std::string& path, RecordFolder* folder) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) {
+    if (!fs::is_empty(path, ec) || ec) {
+      return InvalidArgument(command + ": --record " + path +
+                             ": the folder is not empty (a drive log needs a new or empty one)");
+    }
+  } else if (fs::create_directories(path, ec); ec || !fs::is_directory(path, ec)) {
+    std::error_code link_ec;
+    const std::string why = fs::is_symlink(path, link_ec)
+                                ? "it is a link to " + fs::read_symlink(path, link_ec).string() + ", not to a folder"
+                            : ec ? ec.message()
+                                 : std::string("something else is there");
+    return InvalidArgument(command + ": --record " + path + ": cannot make the folder: " + why);
+  } else {
+    folder->made = true;
+  }
+  folder->path = path;
+  return Status::Ok();
+}
+
 struct SimCli {
   std::string track, record, can_log, png, config, report;
   double speed_mps = 0.0, max_time_s = 0.0;
@@ -190,6 +241,8 @@ Status CheckSimCli(const SimCli& o) {
 
 Status RunSimCli(const SimCli& o) {
   IDI_RETURN_IF_ERROR(CheckSimCli(o));
+  RecordFolder record_folder;
+  if (!o.record.empty()) IDI_RETURN_IF_ERROR(MakeRecordFolder("sim", o.record, &record_folder));
   SimRunOptions so;
   if (!o.config.empty()) {
     IDI_ASSIGN_OR_RETURN(so.config, LoadRmpConfig(o.config));
@@ -222,44 +275,6 @@ struct RunCli {
   std::string config, record;
   bool json = false;
 };
-
-// The drive log folder of `run`, made before the service says it is ready. `made`: by this run (removed
-// again when the run leaves it empty, so that a service systemd restarts does not leave one per attempt).
-struct RecordFolder {
-  std::string path;  // empty: none
-  bool made = false;
-  ~RecordFolder() {
-    std::error_code ec;
-    if (made && std::filesystem::is_empty(path, ec) && !ec) std::filesystem::remove(path, ec);
-  }
-  RecordFolder() = default;
-  RecordFolder(const RecordFolder&) = delete;
-  RecordFolder& operator=(const RecordFolder&) = delete;
-};
-
-// --record: a new or empty folder, made here (its parents too). One that holds files or cannot be made is
-// the command line's fault (exit 2), told before the run rather than when the recorder starts.
-Status MakeRecordFolder(const std::string& path, RecordFolder* folder) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (fs::is_directory(path, ec)) {
-    if (!fs::is_empty(path, ec) || ec) {
-      return InvalidArgument("run: --record " + path +
-                             ": the folder is not empty (a drive log needs a new or empty one)");
-    }
-  } else if (fs::create_directories(path, ec); ec || !fs::is_directory(path, ec)) {
-    std::error_code link_ec;
-    const std::string why = fs::is_symlink(path, link_ec)
-                                ? "it is a link to " + fs::read_symlink(path, link_ec).string() + ", not to a folder"
-                            : ec ? ec.message()
-                                 : std::string("something else is there");
-    return InvalidArgument("run: --record " + path + ": cannot make the folder: " + why);
-  } else {
-    folder->made = true;
-  }
-  folder->path = path;
-  return Status::Ok();
-}
 
 // state_dir/logs/<local time to the second>, or <time>-2, -3, ... when that is taken: made with mkdir,
 // which only one process succeeds in, so that two runs started within a second never share a folder.
@@ -317,7 +332,7 @@ Status RunRecordFolder(const RunCli& o, const RmpConfig& config, RecordFolder* f
   if (!o.record.empty()) {
     IDI_RETURN_IF_ERROR(CheckDistinctFiles(inputs, {{"--record", o.record}}, "run"));
     IDI_RETURN_IF_ERROR(BeforeTheRun(CheckOutputFolder(o.record, "--record")));
-    return MakeRecordFolder(o.record, folder);
+    return MakeRecordFolder("run", o.record, folder);
   }
   if (!config.record) return Status::Ok();
   if (config.state_dir.empty()) return InvalidArgument(o.config + ": record: true needs state_dir");
@@ -364,8 +379,8 @@ Status RunService(const RunCli& o) {
       auto res = RunReplay(ro);
       NotifyStopping();
       if (!res.ok()) return res.status();
-      report = res->report;
-      break;
+      // As `replay` ends: the comparison line, and exit 1 when the log's commands were not reproduced.
+      return ReportReplay(*res, "run: replay.dir " + config.replay_dir + " (" + o.config + ")", o.json);
     }
     case Backend::kHardware: {
       HardwareRunOptions ho;
@@ -418,14 +433,9 @@ void AddReplayCommand(CliApp& cli) {
                        ReplayOptions ro = *o;
                        ro.stop = &g_stop;
                        IDI_ASSIGN_OR_RETURN(const ReplayResult res, RunReplay(ro, log));
-                       PrintReport(res.report, *json);
-                       const std::string comparison = ReplayComparisonSummary(res);
-                       if (!*json) std::cout << comparison << "\n";
+                       const Status reported = ReportReplay(res, "replay " + o->dir, *json);
                        if (g_stop.load()) return Cancelled("replay: stopped by a signal (zero commanded)");
-                       // The replay ran, and its result is that the log is not reproduced: a failed run (exit 1).
-                       if (!res.commands_reproduced())
-                         return FailedPrecondition("replay " + o->dir + ": " + comparison);
-                       return Status::Ok();
+                       return reported;
                      });
   cmd->add_option("dir", o->dir, "the drive log folder (idi-rmp sim --record, or the vehicle's state_dir/logs)")
       ->required();

@@ -89,6 +89,34 @@ class RmpCommandsTest : public ::testing::Test {
     EXPECT_EQ(Sim({"--record", rec}), 0);
     return rec;
   }
+  // Records one moving tick of the drive log `rec` with another speed; its line in events.jsonl (0: none).
+  int ChangeOneMovingTick(const std::string& rec) {
+    const std::string events_path = rec + "/events.jsonl";
+    const std::string events = Read(events_path);
+    int line = 0, changed_line = 0;
+    std::string changed;
+    for (std::size_t start = 0; start < events.size();) {
+      const std::size_t end = events.find('\n', start);
+      ++line;
+      nlohmann::json e = nlohmann::json::parse(events.substr(start, end - start));
+      if (changed_line == 0 && e["type"] == "tick" && e["speed_mps"].get<double>() != 0.0) {
+        e["speed_mps"] = e["speed_mps"].get<double>() + 0.1;
+        changed_line = line;
+        changed += e.dump() + "\n";
+      } else {
+        changed += events.substr(start, end + 1 - start);
+      }
+      start = end + 1;
+    }
+    EXPECT_TRUE(WriteFileAtomically(events_path, changed).ok());
+    return changed_line;
+  }
+  // The exit code, stdout and stderr.
+  std::tuple<int, std::string, std::string> RunCapturingOutput(std::vector<std::string> args) {
+    ::testing::internal::CaptureStdout();
+    const auto [rc, err] = RunCapturingErrors(std::move(args));
+    return {rc, ::testing::internal::GetCapturedStdout(), err};
+  }
 
   fs::path dir_;
   std::string track_, config_;
@@ -180,6 +208,27 @@ TEST_F(RmpCommandsTest, SimChecksItsOutputsBeforeTheRun) {
   EXPECT_EQ(Sim({"--record", (dir_ / "no-such-folder" / "rec").string(), "--png", track_ + ".png"}), 0)
       << "a new record folder's parents are made";
   EXPECT_EQ(Sim({"--record", track_ + "/rec"}), 2) << "its nearest existing parent is a file";
+}
+
+// A --record folder that holds files is refused before the simulation is set up (its track is not even
+// read), naming the option and the folder, as run does; it was refused only when the recorder started.
+TEST_F(RmpCommandsTest, SimRefusesANonEmptyRecordFolderBeforeTheRun) {
+  const fs::path full = dir_ / "full";
+  fs::create_directories(full);
+  Write("full/file", "x\n");
+  const std::string bad_track = Write("bad-track.yaml", "points_m: not a list\n");
+  for (const std::string& track : {track_, bad_track}) {
+    const auto [rc, err] =
+        RunCapturingErrors({"sim", "--track", track, "--config", config_, "--record", full.string()});
+    EXPECT_EQ(rc, 2) << err;
+    EXPECT_NE(err.find("sim: --record " + full.string() + ": the folder is not empty"), std::string::npos) << err;
+    EXPECT_EQ(err.find(bad_track), std::string::npos) << "the track was read first: " << err;
+  }
+  EXPECT_EQ(Read((full / "file").string()), "x\n");
+  // A folder the command made is not left behind when the run fails before recording.
+  const auto [rc, err] = RunCapturingErrors({"sim", "--track", bad_track, "--record", (dir_ / "new").string()});
+  EXPECT_EQ(rc, 2) << err;
+  EXPECT_FALSE(fs::exists(dir_ / "new"));
 }
 
 TEST_F(RmpCommandsTest, SimOutputFailingAfterTheRunKeepsTheReport) {
@@ -303,36 +352,15 @@ TEST_F(RmpCommandsTest, ReplayRefusesACanLogInTheImagesFolderBehindALink) {
 // failed run (exit 1), in text and JSON alike.
 TEST_F(RmpCommandsTest, ReplaySaysWhetherTheCommandsWereReproduced) {
   const std::string rec = Record("rec");
-  auto replay = [this](std::vector<std::string> args) {
-    ::testing::internal::CaptureStdout();
-    const auto [rc, err] = RunCapturingErrors(std::move(args));
-    return std::make_tuple(rc, ::testing::internal::GetCapturedStdout(), err);
-  };
+  auto replay = [this](std::vector<std::string> args) { return RunCapturingOutput(std::move(args)); };
   {
     const auto [rc, out, err] = replay({"replay", rec});
     EXPECT_EQ(rc, 0) << err;
     EXPECT_NE(out.find("commands reproduced: yes"), std::string::npos) << out;
   }
   // One moving tick recorded with another speed.
-  const std::string events_path = rec + "/events.jsonl";
-  std::string events = Read(events_path);
-  int line = 0, changed_line = 0;
-  std::string changed;
-  for (std::size_t start = 0; start < events.size();) {
-    const std::size_t end = events.find('\n', start);
-    ++line;
-    nlohmann::json e = nlohmann::json::parse(events.substr(start, end - start));
-    if (changed_line == 0 && e["type"] == "tick" && e["speed_mps"].get<double>() != 0.0) {
-      e["speed_mps"] = e["speed_mps"].get<double>() + 0.1;
-      changed_line = line;
-      changed += e.dump() + "\n";
-    } else {
-      changed += events.substr(start, end + 1 - start);
-    }
-    start = end + 1;
-  }
-  ASSERT_GT(changed_line, 0) << "no moving tick in " << events_path;
-  ASSERT_TRUE(WriteFileAtomically(events_path, changed).ok());
+  const int changed_line = ChangeOneMovingTick(rec);
+  ASSERT_GT(changed_line, 0) << "no moving tick in " << rec;
   {
     const auto [rc, out, err] = replay({"replay", rec});
     EXPECT_EQ(rc, 1) << err;
@@ -387,6 +415,22 @@ TEST_F(RmpCommandsTest, ReplayWarnsOfATornLastLineAndReplaysUpToIt) {
   EXPECT_EQ(report.value("commands_reproduced", false), true) << out;
   EXPECT_GT(report.value("ticks_compared", 0), 50) << out;
   EXPECT_EQ(report.value("end", ""), "log-ended") << out;
+}
+
+// can.log cut mid-line by a power loss: the warning names the file and the line it dropped, as the one
+// for events.jsonl does.
+TEST_F(RmpCommandsTest, ReplayWarnsOfATornLastCanLogLineByItsNumber) {
+  const std::string rec = Record("rec");
+  const std::string can_path = rec + "/can.log";
+  const std::string can = Read(can_path);
+  const auto lines = std::count(can.begin(), can.end(), '\n');
+  ASSERT_GT(lines, 10);
+  ASSERT_EQ(can.back(), '\n');
+  ASSERT_TRUE(WriteFileAtomically(can_path, can + "(1.0000").ok());
+  const auto [rc, out, err] = RunCapturingOutput({"replay", rec, "--json"});
+  EXPECT_EQ(rc, 0) << err;
+  EXPECT_NE(err.find(can_path + ":" + std::to_string(lines + 1) + ": the last line has no newline"), std::string::npos)
+      << err;
 }
 
 // The command frames (id kRmpIdCommand) of a replayed driver's CAN log, with their times.
@@ -478,6 +522,32 @@ TEST_F(RmpCommandsTest, RunWithReplayBackendRefusesRecord) {
   EXPECT_NE(err.find("--record"), std::string::npos) << err;
   EXPECT_FALSE(fs::exists(dir_ / "new"));
   EXPECT_EQ(Run({"run", "--config", cfg}), 0);
+}
+
+// run with the replay backend compares the commands as replay does: the same line after the report, and
+// a log it does not reproduce is a failed run (exit 1); it said nothing and exited 0.
+TEST_F(RmpCommandsTest, RunWithReplayBackendSaysWhetherTheCommandsWereReproduced) {
+  const std::string rec = Record("rec");
+  const std::string cfg = Write("replay.yaml", "backend: replay\nreplay: {dir: " + rec + "}\n");
+  {
+    const auto [rc, out, err] = RunCapturingOutput({"run", "--config", cfg});
+    EXPECT_EQ(rc, 0) << err;
+    EXPECT_NE(out.find("commands reproduced: yes"), std::string::npos) << out;
+  }
+  const int changed_line = ChangeOneMovingTick(rec);
+  ASSERT_GT(changed_line, 0) << "no moving tick in " << rec;
+  {
+    const auto [rc, out, err] = RunCapturingOutput({"run", "--config", cfg});
+    EXPECT_EQ(rc, 1) << err;
+    EXPECT_NE(out.find("commands reproduced: no (1 of "), std::string::npos) << out;
+    EXPECT_NE(out.find("events.jsonl line " + std::to_string(changed_line)), std::string::npos) << out;
+    EXPECT_NE(err.find(cfg), std::string::npos) << err;
+  }
+  {
+    const auto [rc, out, err] = RunCapturingOutput({"run", "--config", cfg, "--json"});
+    EXPECT_EQ(rc, 1) << err;
+    EXPECT_EQ(nlohmann::json::parse(out).value("commands_reproduced", true), false) << out;
+  }
 }
 
 // Two runs started within one second: the second's drive log gets a folder of its own (<time>-2), made

@@ -1,5 +1,6 @@
 #include "rmp/app/rmp_config.h"
 
+#include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
@@ -9,6 +10,7 @@
 #include <set>
 
 #include "shared/runtime/yaml_error.h"
+#include "shared/sim/vehicle/vehicle_twin.h"
 #include "shared/util/atomic_file.h"
 #include "shared/util/units.h"
 
@@ -34,6 +36,23 @@ class MapReader {
       } catch (const YAML::Exception&) {
         return InvalidArgument(Where(v) + ": " + Key(key) + " must be a number");
       }
+    };
+  }
+  // A number in [lo, hi]; `why` says where the bounds come from.
+  void Number(const std::string& key, double* out, double lo, double hi, const std::string& why) {
+    handlers_[key] = [this, key, out, lo, hi, why](const YAML::Node& v) -> Status {
+      double d = 0.0;
+      try {
+        d = v.as<double>();
+      } catch (const YAML::Exception&) {
+        return InvalidArgument(Where(v) + ": " + Key(key) + " must be a number");
+      }
+      if (!(d >= lo && d <= hi)) {
+        return InvalidArgument(
+            fmt::format("{}: {} = {:g} must be in [{:g}, {:g}] ({})", Where(v), Key(key), d, lo, hi, why));
+      }
+      *out = d;
+      return Status::Ok();
     };
   }
   void Int(const std::string& key, int* out) {
@@ -411,7 +430,11 @@ Result<RmpConfig> ParseRmpConfig(const std::string& text, const std::string& sou
       fr.Number("bus_off_at_s", &f.bus_off_at_s);
       fr.Number("bus_off_duration_s", &f.bus_off_duration_s);
       fr.Number("battery_drop_at_s", &f.battery_drop_at_s);
-      fr.Number("battery_drop_v", &f.battery_drop_v);
+      fr.Number("battery_drop_v",
+                &f.battery_drop_v,
+                0.0,
+                sim::VehicleTwinOptions().base_battery_start_v,
+                "volts the twin's powerbase battery loses; it starts full at the upper bound");
       fr.Number("stamp_glitch_at_s", &f.stamp_glitch_at_s);
       fr.Number("stamp_glitch_s", &f.stamp_glitch_s);
       fr.Custom("covered_m", [&](const YAML::Node& list) -> Status {
@@ -422,6 +445,10 @@ Result<RmpConfig> ParseRmpConfig(const std::string& text, const std::string& sou
           try {
             if (!list[i].IsSequence() || list[i].size() != 2) throw YAML::Exception(list[i].Mark(), "");
             f.covered_m.emplace_back(list[i][0].as<double>(), list[i][1].as<double>());
+            if (!std::isfinite(f.covered_m.back().first) || !std::isfinite(f.covered_m.back().second)) {
+              return InvalidArgument(fr.Where(list[i]) + ": sim.faults.covered_m[" + std::to_string(i) +
+                                     "] is not a finite [from, to] (metres along the track)");
+            }
           } catch (const YAML::Exception&) {
             return InvalidArgument(fr.Where(list[i]) + ": sim.faults.covered_m[" + std::to_string(i) +
                                    "] must be [from, to]");

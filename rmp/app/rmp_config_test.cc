@@ -152,6 +152,28 @@ TEST(RmpConfigTest, RefusesMistakesNamingFileLineAndKey) {
   EXPECT_EQ(LoadRmpConfig("/nonexistent/rmp.yaml").status().code(), StatusCode::kNotFound);
 }
 
+// Fault values the twin cannot apply were taken silently: a cover to infinity, a battery that "drops" by
+// a negative voltage or by more than it holds.
+TEST(RmpConfigTest, RefusesFaultValuesTheTwinCannotApplyNamingTheLine) {
+  for (const auto& [text, where] : std::vector<std::pair<std::string, std::string>>{
+           {"sim:\n  faults:\n    covered_m: [[0.3, .inf]]\n", "c.yaml:3: sim.faults.covered_m[0]"},
+           {"sim:\n  faults:\n    battery_drop_v: -5\n", "c.yaml:3: sim.faults.battery_drop_v = -5"},
+           {"sim:\n  faults:\n    battery_drop_v: 1000\n", "c.yaml:3: sim.faults.battery_drop_v = 1000"},
+           {"sim:\n  faults:\n    battery_drop_v: .nan\n", "c.yaml:3: sim.faults.battery_drop_v"}}) {
+    const auto r = ParseRmpConfig(text, "c.yaml");
+    if (r.ok()) {
+      ADD_FAILURE() << "accepted: " << text;
+      continue;
+    }
+    EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument) << text;
+    EXPECT_NE(r.status().message().find(where), std::string::npos) << text << ": " << r.status().message();
+  }
+  const auto fine =
+      ParseRmpConfig("sim: {faults: {battery_drop_at_s: 1, battery_drop_v: 10, covered_m: [[0.3, 2]]}}\n", "c.yaml");
+  ASSERT_TRUE(fine.ok()) << fine.status().ToString();
+  EXPECT_EQ(fine->sim.faults.battery_drop_v, 10.0);
+}
+
 // hardware.cameras with the given entries (and the CAN interface the hardware backend needs).
 Result<RmpConfig> HardwareCameras(const std::string& left, const std::string& right) {
   return ParseRmpConfig("backend: hardware\nhardware:\n  cameras:\n    - " + left + "\n    - " + right + "\n",

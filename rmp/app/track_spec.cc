@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <set>
 
 #include "shared/runtime/yaml_error.h"
@@ -36,6 +37,18 @@ Result<Vec2d> Pair(const YAML::Node& node, const std::string& source, const std:
   IDI_ASSIGN_OR_RETURN(const double b, Number(node[1], source, key));
   return Vec2d(a, b);
 }
+
+// Defined with the scene's code below.
+std::vector<std::pair<double, double>> TapedRanges(double length,
+                                                   const std::vector<std::pair<double, double>>& without);
+std::string PointName(const std::vector<Vec2d>& points, std::size_t i);
+
+// Limits of a track the twin lays and the vehicle drives: the tape is a strip at least this long (and
+// longer than it is wide: the perception pairs its long edges), and a given start lies this close to the
+// first point and heads within this many radians of zero (a heading, not a count of turns).
+constexpr double kMinTrackLengthM = 0.1;
+constexpr double kMaxStartDistanceM = 1.0;
+constexpr double kMaxStartYawRad = 4 * std::numbers::pi;
 
 }  // namespace
 
@@ -69,10 +82,42 @@ Status TrackSpec::Check() const {
   }
   if (!(speed_mps >= 0 && speed_mps <= 3.0)) return InvalidArgument(source + ": speed_mps must be in [0, 3]");
   const double len = Length();
+  if (!(len >= kMinTrackLengthM && len > tape_width_m)) {
+    return InvalidArgument(
+        fmt::format("{}: points_m: the track is {:g} m long; a track must be at least {:g} m and "
+                    "longer than its tape is wide (tape_width_m {:g})",
+                    source,
+                    len,
+                    kMinTrackLengthM,
+                    tape_width_m));
+  }
   for (std::size_t i = 0; i < gaps_m.size(); ++i) {
     if (!(gaps_m[i].first >= 0 && gaps_m[i].second > gaps_m[i].first && gaps_m[i].second <= len)) {
       return InvalidArgument(source + ": gaps_m[" + std::to_string(i) +
                              "] must satisfy 0 <= from < to <= track length (" + std::to_string(len) + " m)");
+    }
+  }
+  if (TapedRanges(len, gaps_m).empty()) {
+    return InvalidArgument(
+        fmt::format("{}: gaps_m cover the whole track ({:g} m): no tape would be laid", source, len));
+  }
+  if (has_start) {
+    const std::string where = start_line > 0 ? fmt::format("{}:{}", source, start_line) : source;
+    if (!(std::abs(start_yaw_rad) <= kMaxStartYawRad)) {
+      return InvalidArgument(
+          fmt::format("{}: start.yaw_rad {:g} must be within +-4 pi (a heading in radians)", where, start_yaw_rad));
+    }
+    const double d = std::hypot(start_x_m - points_m[0].x(), start_y_m - points_m[0].y());
+    if (!(d <= kMaxStartDistanceM)) {
+      return InvalidArgument(
+          fmt::format("{}: start ({:g}, {:g}) is {:g} m from the track's first point {}; it must be "
+                      "within {:g} m of it",
+                      where,
+                      start_x_m,
+                      start_y_m,
+                      d,
+                      PointName(points_m, 0),
+                      kMaxStartDistanceM));
     }
   }
   return Status::Ok();
@@ -105,8 +150,12 @@ Result<TrackSpec> ParseTrackYaml(const std::string& text, const std::string& sou
     } else if (key == "start") {
       if (!v.IsMap()) return InvalidArgument(Where(source, v) + ": start must be {x_m, y_m, yaw_rad}");
       t.has_start = true;
+      t.start_line = v.Mark().line + 1;
+      std::set<std::string> start_seen;
       for (const auto& sk : v) {
         const std::string k = sk.first.as<std::string>();
+        if (!start_seen.insert(k).second)
+          return InvalidArgument(Where(source, sk.first) + ": key 'start." + k + "' given twice");
         IDI_ASSIGN_OR_RETURN(const double num, Number(sk.second, source, "start." + k));
         if (k == "x_m")
           t.start_x_m = num;

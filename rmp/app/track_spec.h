@@ -5,7 +5,8 @@
 // for theirs. Format:
 //   tape_width_m: 0.05
 //   points_m: [[x, y], ...]         centre line on the ground, in order; the track ends at the last point
-//   start: {x_m, y_m, yaw_rad}      optional (default: the first point, facing the second)
+//   start: {x_m, y_m, yaw_rad}      optional (default: the first point, facing the second); within 1 m of
+//                                   the first point, |yaw_rad| <= 4 pi
 //   speed_mps: 0.5                  optional cruise speed
 //   gaps_m: [[from, to], ...]       optional stretches (arc length from the first point) without tape
 #pragma once
@@ -26,6 +27,7 @@ struct TrackSpec {
   std::vector<Vec2d> points_m;
   bool has_start = false;
   double start_x_m = 0.0, start_y_m = 0.0, start_yaw_rad = 0.0;
+  int start_line = 0;      // start's line in the file, for messages (0: not read from one)
   double speed_mps = 0.0;  // 0: not given
   std::vector<std::pair<double, double>> gaps_m;
 

@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <numbers>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace idi::rmp {
 namespace {
@@ -52,6 +54,33 @@ TEST(TrackSpecTest, NamesTheFileLineAndKeyOfMistakes) {
   EXPECT_NE(gap.status().message().find("gaps_m[0]"), std::string::npos);
   EXPECT_FALSE(ParseTrackYaml("[", "t.yaml").ok());
   EXPECT_EQ(LoadTrackFile("/nonexistent/track.yaml").status().code(), StatusCode::kNotFound);
+}
+
+// Tracks that were taken silently and gave a run that could not start (a start 50 m away, a yaw of
+// 1e300 rad, no tape at all, 2 mm of tape), or a start key whose second value replaced the first.
+TEST(TrackSpecTest, RefusesTracksThatCannotBeDrivenNamingTheKey) {
+  const std::string line = "points_m: [[0, 0], [1, 0]]\n";
+  for (const auto& [text, what] : std::vector<std::pair<std::string, std::string>>{
+           {line + "start: {x_m: 0, x_m: 0.5, yaw_rad: 0}\n", "t.yaml:2: key 'start.x_m' given twice"},
+           {line + "start: {x_m: 50, y_m: 0, yaw_rad: 0}\n", "t.yaml:2: start (50, 0) is 50 m from"},
+           {line + "start: {x_m: 0, y_m: 0, yaw_rad: 1e300}\n", "t.yaml:2: start.yaw_rad 1e+300 must be within"},
+           {line + "start: {x_m: 0, y_m: 0, yaw_rad: -13}\n", "t.yaml:2: start.yaw_rad -13 must be within"},
+           {line + "start: {x_m: 0, y_m: 0, yaw_rad: .inf}\n", "t.yaml:2: start.yaw_rad is not a finite number"},
+           {line + "gaps_m: [[0, 0.6], [0.5, 1.0]]\n", "t.yaml: gaps_m cover the whole track"},
+           {line + "gaps_m: [[0, 1.0]]\n", "t.yaml: gaps_m cover the whole track"},
+           {"points_m: [[0, 0], [0.002, 0]]\n", "t.yaml: points_m: the track is 0.002 m long"},
+           {"tape_width_m: 0.3\npoints_m: [[0, 0], [0.2, 0]]\n", "t.yaml: points_m: the track is 0.2 m long"}}) {
+    const auto t = ParseTrackYaml(text, "t.yaml");
+    if (t.ok()) {
+      ADD_FAILURE() << "accepted: " << text;
+      continue;
+    }
+    EXPECT_EQ(t.status().code(), StatusCode::kInvalidArgument) << text;
+    EXPECT_NE(t.status().message().find(what), std::string::npos) << text << ": " << t.status().message();
+  }
+  // Within the limits: a start 0.9 m behind the first point, turned by 2 pi, and a gap leaving tape.
+  EXPECT_TRUE(ParseTrackYaml(line + "start: {x_m: -0.9, y_m: 0, yaw_rad: 6.2832}\ngaps_m: [[0, 0.9]]\n", "t").ok());
+  EXPECT_TRUE(ParseTrackYaml("points_m: [[0, 0], [0.1, 0]]\n", "t").ok());
 }
 
 TEST(TrackSpecTest, SplitsTheTapeAtGaps) {

@@ -216,6 +216,13 @@ Result<Recording> ReadRecording(const std::string& dir) {
     }
     const std::string line = events.substr(start, nl - start);
     start = nl + 1;
+    // A last line of NUL bytes only: the zero-filled tail a filesystem leaves after a power loss (the
+    // file's size written, its data not). Torn like a line without its newline; other garbage is an error.
+    if (start == events.size() && !line.empty() && line.find_first_not_of('\0') == std::string::npos) {
+      r.truncated = true;
+      r.truncated_line = line_no;
+      break;
+    }
     if (line.empty()) continue;
     nlohmann::json e = nlohmann::json::parse(line, nullptr, false);
     if (e.is_discarded() || !e.is_object() || !e.contains("type") || !e.contains("t_ns")) {

@@ -83,15 +83,15 @@ struct Recording {
   RecordingHeader header;
   std::vector<nlohmann::json> events;  // in file order
   std::vector<int> lines;              // events[i]'s line in events.jsonl (1-based), for messages
-  bool truncated = false;              // the last line was incomplete (a run killed while writing)
+  bool truncated = false;              // the last line was torn (a run killed while writing, a power loss)
   int truncated_line = 0;              // that line's number (skipped)
 };
 
 // Reads a recording. ParseError naming the file and line for malformed content (fields of the wrong
 // type; a meta that is not an object; a t_ns whose UnixTimeOf overflows; an image event whose seq is
 // not an integer >= 0, whose file is absolute or leaves the folder (..), or that records a frame (camera,
-// seq) or a file seen before); a torn last line (no newline) is skipped and reported in truncated and
-// truncated_line, for the caller to warn about.
+// seq) or a file seen before); a torn last line (no newline, or NUL bytes only) is skipped and reported in truncated
+// and truncated_line, for the caller to warn about.
 Result<Recording> ReadRecording(const std::string& dir);
 // The path of an image event's file (inside the recording's folder).
 Result<std::string> RecordedImagePath(const Recording& recording, const nlohmann::json& image_event);

@@ -59,6 +59,32 @@ TEST(RecordingTest, RoundTripWithImagesAndATornLastLine) {
   fs::remove_all(dir);
 }
 
+// A power loss can leave the file's last line as NUL bytes (its length written, its data not), with or
+// without the newline: torn like a line without a newline, reported by number. Any other garbage in the
+// last line stays an error.
+TEST(RecordingTest, ANulFilledLastLineIsTorn) {
+  const fs::path dir = fs::temp_directory_path() / ("idi_recording_nul_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::ofstream(dir / "recording.json") << R"({"format": "idi-recording", "version": 1, "kind": "x"})";
+  const std::string good = "{\"type\":\"note\",\"t_ns\":1}\n";
+  for (const bool newline : {true, false}) {
+    std::ofstream(dir / "events.jsonl", std::ios::binary) << good << std::string(24, '\0') << (newline ? "\n" : "");
+    const auto r = ReadRecording(dir.string());
+    ASSERT_TRUE(r.ok()) << "newline " << newline << ": " << r.status().ToString();
+    EXPECT_EQ(r->events.size(), 1u);
+    EXPECT_TRUE(r->truncated);
+    EXPECT_EQ(r->truncated_line, 2);
+  }
+  // NUL bytes before the last line are not a tear.
+  std::ofstream(dir / "events.jsonl", std::ios::binary) << std::string(8, '\0') << "\n" << good;
+  EXPECT_FALSE(ReadRecording(dir.string()).ok());
+  // Garbage with a newline as the last line is not a tear either.
+  std::ofstream(dir / "events.jsonl", std::ios::binary) << good << "{\"type\":\n";
+  EXPECT_FALSE(ReadRecording(dir.string()).ok());
+  fs::remove_all(dir);
+}
+
 TEST(RecordingTest, MalformedInputIsNamed) {
   const fs::path dir = fs::temp_directory_path() / ("idi_recording_bad_" + std::to_string(::getpid()));
   fs::remove_all(dir);

@@ -95,7 +95,11 @@ Status ReplayScan(const Recording& rec, bool json) {
 
 Status RunReplay(const ReplayOptions& o) {
   IDI_ASSIGN_OR_RETURN(const Recording rec, ReadRecording(o.dir));
-  if (rec.truncated) spdlog::warn("{}: the recording ends with a torn line (the run was interrupted)", o.dir);
+  if (rec.truncated) {
+    spdlog::warn("{}/events.jsonl:{}: the recording ends with a torn line (the run was interrupted); skipped",
+                 o.dir,
+                 rec.truncated_line);
+  }
   if (rec.header.kind == "scan") return ReplayScan(rec, o.json);
   // Other runs: what was recorded, by event type.
   std::map<std::string, int> counts;
