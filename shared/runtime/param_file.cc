@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -50,21 +51,29 @@ Result<double> ReadNumber(const YAML::Node& node, const std::string& where, cons
   return v;
 }
 
+// The largest magnitude a length parameter may have in a file, in its unit (kMaxParamLengthM); none for
+// a parameter that is not a length. The loader (CheckLength) and the writer (CheckParamsWritable) share it.
+std::optional<double> MaxLength(const ParamSpec& spec) {
+  if (spec.unit == Unit::kMillimetre) return kMaxParamLengthM * 1000.0;
+  if (spec.unit == Unit::kMetre) return kMaxParamLengthM;
+  return std::nullopt;
+}
+
 // A length beyond kMaxParamLengthM (in the spec's unit) is refused, naming the key and the bound.
 Status CheckLength(const ParamSpec& spec, double file_value, const YAML::Node& node, const std::string& where) {
-  if (spec.unit != Unit::kMillimetre && spec.unit != Unit::kMetre) return Status::Ok();
-  const double max = spec.unit == Unit::kMillimetre ? kMaxParamLengthM * 1000.0 : kMaxParamLengthM;
-  if (std::abs(file_value) <= max) return Status::Ok();
+  const std::optional<double> max = MaxLength(spec);
+  if (!max || std::abs(file_value) <= *max) return Status::Ok();
   std::ostringstream s;
   s << At(where, node) << ": key '" << spec.Key() << "': " << file_value << " " << UnitSuffix(spec.unit)
-    << " is out of range (a length is at most " << max << " " << UnitSuffix(spec.unit);
+    << " is out of range (a length is at most " << *max << " " << UnitSuffix(spec.unit);
   if (spec.unit == Unit::kMillimetre) s << ", " << kMaxParamLengthM << " m,";
   s << " in magnitude)";
   return OutOfRange(s.str());
 }
 
-// The file's `model`, when it has one, must be one of `models` (when given).
-Status CheckModel(const YAML::Node& node, const std::vector<std::string>& models, const std::string& where) {
+}  // namespace
+
+Status CheckParamFileModel(const YAML::Node& node, const std::vector<std::string>& models, const std::string& where) {
   const YAML::Node model = node["model"];
   if (models.empty() || !model) return Status::Ok();
   const std::string name = model.IsScalar() ? model.Scalar() : std::string();
@@ -79,8 +88,6 @@ Status CheckModel(const YAML::Node& node, const std::vector<std::string>& models
                          "' is not the one expected here (expected model: " + expected + ")");
 }
 
-}  // namespace
-
 Result<ParamSet> ParamSetFromYaml(const YAML::Node& node,
                                   const std::vector<ParamSpec>& specs,
                                   const std::string& where,
@@ -88,7 +95,7 @@ Result<ParamSet> ParamSetFromYaml(const YAML::Node& node,
   if (!node.IsMap()) {
     return ParseError(where + ": expected a map of parameters (key: value)");
   }
-  IDI_RETURN_IF_ERROR(CheckModel(node, options.models, where));
+  IDI_RETURN_IF_ERROR(CheckParamFileModel(node, options.models, where));
   ParamSet set(specs);
   std::map<std::string, std::size_t> by_key, by_name;
   for (std::size_t i = 0; i < specs.size(); ++i) {
@@ -186,13 +193,12 @@ Status CheckParamsWritable(const ParamSet& set, const std::string& where) {
   for (std::size_t i = 0; i < set.size(); ++i) {
     const ParamSpec& spec = set.spec(i);
     const std::string key = spec.Key();
-    const bool length = spec.unit == Unit::kMillimetre || spec.unit == Unit::kMetre;
-    const double max = spec.unit == Unit::kMillimetre ? kMaxParamLengthM * 1000.0 : kMaxParamLengthM;
+    const std::optional<double> max_length = MaxLength(spec);
     if (!std::isfinite(set.value(i)))
       values += (values.empty() ? "" : ", ") + key;
     else if (std::isinf(set.stddev(i)))
       stds += (stds.empty() ? "" : ", ") + key;
-    else if (length && std::abs(set.file_value(i)) > max)  // the loader would refuse it (CheckLength)
+    else if (max_length && std::abs(set.file_value(i)) > *max_length)  // the loader would refuse it (CheckLength)
       lengths += (lengths.empty() ? "" : ", ") + key;
   }
   if (values.empty() && stds.empty() && lengths.empty()) return Status::Ok();

@@ -35,6 +35,11 @@ struct ParamFileOptions {
   std::vector<std::string> models;
 };
 
+// Refuses (InvalidArgument naming `where`, the line and both models) a map `node` whose top-level `model`
+// is not one of `models` (empty: any); a map without the key passes (ParamFileOptions::models). For files
+// whose parameters sit in sections below the top level (the pan-tilt calibration's left:, right:).
+Status CheckParamFileModel(const YAML::Node& node, const std::vector<std::string>& models, const std::string& where);
+
 // Parses `node` (a YAML map) into a ParamSet of `specs`. `where` names the source in messages.
 Result<ParamSet> ParamSetFromYaml(const YAML::Node& node, const std::vector<ParamSpec>& specs,
                                   const std::string& where, const ParamFileOptions& options = {});

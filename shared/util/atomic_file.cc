@@ -211,6 +211,23 @@ Status CheckOutputFolder(const std::string& path, const std::string& what) {
   return Status::Ok();
 }
 
+Status CheckNewOutputFolder(const std::string& path,
+                            const std::string& what,
+                            const std::vector<std::string>& may_hold) {
+  namespace fs = std::filesystem;
+  IDI_RETURN_IF_ERROR(CheckOutputFolder(path, what));
+  std::error_code ec;
+  if (path.empty() || !fs::is_directory(path, ec)) return Status::Ok();  // made by the run
+  for (fs::directory_iterator it(path, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (std::find(may_hold.begin(), may_hold.end(), name) != may_hold.end()) continue;
+    return InvalidArgument(what + " " + path + ": the folder is not empty (it holds '" + name +
+                           "'; give a new or empty folder, results of two runs would mix)");
+  }
+  if (ec) return IoError(what + " " + path + ": cannot list the folder: " + ec.message());
+  return Status::Ok();
+}
+
 namespace {
 
 // What identifies the file a path leads to: its absolute path once every link is resolved (a link to a

@@ -24,6 +24,12 @@ Status CheckOutputFile(const std::string& path, const std::string& what);
 // The same for a folder of outputs, without making it: it is a writable folder, or the nearest of its
 // parents that exists is one (so that it can be made).
 Status CheckOutputFolder(const std::string& path, const std::string& what);
+// CheckOutputFolder, and the folder is new or empty, so that a run's results are not mixed with an earlier
+// run's: one holding anything but the entries named in `may_hold` (e.g. a folder the command itself keeps
+// there between runs) is refused (InvalidArgument naming the folder and an entry it holds).
+Status CheckNewOutputFolder(const std::string& path,
+                            const std::string& what,
+                            const std::vector<std::string>& may_hold = {});
 
 // A file a command reads or writes, with the option that names it (for messages).
 struct NamedFile {

@@ -136,11 +136,21 @@ ArmDevices DevicesFromTwin(sim::WorkcellTwin& twin, int k) {
   return d;
 }
 
-// A noise level from the command line: finite and >= 0 (the twin's constructor refuses others by
-// aborting, and the calibration's weights would be meaningless).
+// The largest noise std (mm) the command line may give. The spots, rail moves and distances it describes
+// are a metre or two across, so a std of a metre is already no noise model: beyond it is a unit slip (µm
+// or m for mm), and one near the largest double overflows the solve's residuals into NaN.
+constexpr double kMaxSigmaMm = 1000.0;
+
+// A noise level from the command line: finite, >= 0 (the twin's constructor refuses others by
+// aborting, and the calibration's weights would be meaningless) and at most kMaxSigmaMm.
 Status CheckSigma(double v, const char* option) {
-  if (std::isfinite(v) && v >= 0) return Status::Ok();
-  return InvalidArgument(fmt::format("{} must be a finite number >= 0, got {}", option, v));
+  if (!(std::isfinite(v) && v >= 0)) {
+    return InvalidArgument(fmt::format("{} must be a finite number >= 0, got {}", option, v));
+  }
+  if (v > kMaxSigmaMm) {
+    return OutOfRange(fmt::format("{}: {} mm is out of range (a noise std is at most {} mm)", option, v, kMaxSigmaMm));
+  }
+  return Status::Ok();
 }
 
 sim::WorkcellTwinOptions TwinOptions(unsigned seed, double spot_sigma_mm) {

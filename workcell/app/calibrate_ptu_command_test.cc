@@ -142,6 +142,32 @@ TEST_F(CalibratePtuCommandTest, BadDataGivesAClearMessageAndWritesNothing) {
   ExpectNothingWritten();
 }
 
+// A result file of another model (a robot calibration given as --start, a file edited by hand) is refused,
+// naming the file, the line and both models, as LoadParamFile refuses one; a file without `model` is read.
+TEST_F(CalibratePtuCommandTest, AStartFileOfAnotherModelIsRefused) {
+  calib::PtuCalibrationResult r;
+  calib::PtuCameraCalibration left;
+  left.model = calib::PtuCameraModel::Nominal(BiclopsSide::kLeft);
+  r.cameras.push_back(left);
+  ASSERT_TRUE(WritePtuCalibration(Path("ptu.yaml"), r, nullptr).ok());
+  auto text = ReadFile(Path("ptu.yaml"));
+  ASSERT_TRUE(text.ok());
+  ASSERT_EQ(text->rfind("model: biclops-ptu\n", 0), 0u) << *text;
+  ASSERT_TRUE(LoadPtuCalibration(Path("ptu.yaml")).ok());
+  const std::string body = text->substr(text->find('\n') + 1);
+  ASSERT_TRUE(WriteFileAtomically(Path("other.yaml"), "model: rx130-laser-vicki\n" + body).ok());
+  const auto other = LoadPtuCalibration(Path("other.yaml"));
+  ASSERT_FALSE(other.ok());
+  EXPECT_EQ(other.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(other.status().message().find(Path("other.yaml") +
+                                          ":1: model 'rx130-laser-vicki' is not the one expected here (expected "
+                                          "model: biclops-ptu)"),
+            std::string::npos)
+      << other.status().message();
+  ASSERT_TRUE(WriteFileAtomically(Path("bare.yaml"), body).ok());
+  EXPECT_TRUE(LoadPtuCalibration(Path("bare.yaml")).ok());
+}
+
 TEST_F(CalibratePtuCommandTest, SimRunsTheProcedureInTheTwin) {
   CalibratePtuOptions o;
   o.sim = true;

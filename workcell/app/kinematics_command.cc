@@ -6,6 +6,7 @@
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "shared/kinematics/aiming.h"
 #include "shared/kinematics/biclops.h"
@@ -26,7 +27,27 @@ struct KinematicsOptions {
 
 nlohmann::json Vec(const Vec3d& v) { return {v.x(), v.y(), v.z()}; }
 
+// --aim-mm's target, at most kMaxParamLengthM from the robot base. The workcell is a few metres across
+// (the walls the laser aims at are within reach of the rail's length): a target 100 m away is a unit
+// slip, and one near the largest double overflowed the aiming's residual to inf (exit 1, after the
+// work). No target: nullopt.
+Result<std::optional<Vec3d>> ParseAimTarget(const std::string& text) {
+  if (text.empty()) return std::optional<Vec3d>();
+  IDI_ASSIGN_OR_RETURN(const std::vector<double> t, ParseNumberList(text, 3, "--aim-mm"));
+  const Vec3d target(t[0], t[1], t[2]);
+  const double max_mm = kMaxParamLengthM * 1000.0;
+  if (!(target.norm() <= max_mm)) {
+    return OutOfRange(
+        fmt::format("--aim-mm: the target {} mm is out of range (at most {} mm, {} m, from the robot base)",
+                    text,
+                    max_mm,
+                    kMaxParamLengthM));
+  }
+  return std::optional<Vec3d>(target);
+}
+
 Status RunKinematics(const KinematicsOptions& o) {
+  IDI_ASSIGN_OR_RETURN(const std::optional<Vec3d> aim_target, ParseAimTarget(o.aim_mm));
   ParamSet robot = Rx130Nominal();
   ParamSet laser = LaserNominal();
   // A `calibrate robot` output's model (procedures/calibration_files.cc); a file of another model (a
@@ -99,9 +120,8 @@ Status RunKinematics(const KinematicsOptions& o) {
   out["laser_origin_mm"] = Vec(line.origin);
   out["laser_direction"] = Vec(line.direction);
 
-  if (!o.aim_mm.empty()) {
-    IDI_ASSIGN_OR_RETURN(const std::vector<double> t, ParseNumberList(o.aim_mm, 3, "--aim-mm"));
-    const Vec3d target(t[0], t[1], t[2]);
+  if (aim_target) {
+    const Vec3d& target = *aim_target;
     const AimAngles aim = AimDirection(line.origin, target);
     out["aim_eq3_7_yaw_deg"] = RadToDeg(aim.yaw_rad);
     out["aim_eq3_8_pitch_deg"] = RadToDeg(aim.pitch_rad);

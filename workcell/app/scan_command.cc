@@ -40,6 +40,12 @@ Status RunScanCli(ScanCliOptions& o) {
         "backend does not serve yet)");
   }
   IDI_RETURN_IF_ERROR(ParseObject(o.scan.object).status());
+  // A new or empty run folder: images, overlays and reports of two runs would mix. Without --calibration
+  // it may hold the calibration folder an earlier run left there (reused, as documented).
+  IDI_RETURN_IF_ERROR(CheckNewOutputFolder(
+      o.scan.out,
+      "scan: --out",
+      o.calibration_dir.empty() ? std::vector<std::string>{"calibration"} : std::vector<std::string>{}));
   const std::string cal_dir = o.calibration_dir.empty() ? (fs::path(o.scan.out) / "calibration").string() : o.calibration_dir;
   IDI_ASSIGN_OR_RETURN(const CalibrationFiles files, EnsureSimCalibration(cal_dir, o.scan.seed));
   IDI_ASSIGN_OR_RETURN(const ScanCalibration cal, LoadScanCalibration(files));
@@ -214,7 +220,11 @@ void AddScanCommand(CliApp& cli) {
                   "folder with robot1.yaml, robot2.yaml, rail.yaml, ptu.yaml (with --sim: missing ones are calibrated "
                   "first; default OUT/calibration)");
   cmd->add_flag("!--no-pick", o->scan.pick, "scan and plan only, do not move robot 2");
-  cmd->add_option("--out", o->scan.out, "run folder: images, overlays, model.ply, report.json")->required();
+  cmd->add_option("--out",
+                  o->scan.out,
+                  "run folder, new or empty (without --calibration it may hold the calibration folder of an earlier "
+                  "run): images, overlays, model.ply, report.json")
+      ->required();
   cmd->add_flag("--json", o->json, "print the report on stdout");
 }
 

@@ -130,6 +130,23 @@ TEST_F(SimRenderCommandTest, BadInputExitsWithTwoAndWritesNothing) {
   EXPECT_FALSE(fs::exists(dir_));
 }
 
+// A ground truth that cannot be written (here a folder where small.json goes) fails the run and leaves no
+// PNG without its JSON: before, small.png stayed behind.
+TEST_F(SimRenderCommandTest, AFailedTruthWriteLeavesNoImageWithoutIt) {
+  const std::string scene = dir_.string() + "-scene.yaml";
+  ASSERT_TRUE(WriteFileAtomically(scene, R"(
+cameras:
+  - {name: small, width_px: 96, height_px: 64, fx_px: 200, fy_px: 200, cx_px: 47.5, cy_px: 31.5,
+     position_mm: [1906, -500, 421], look_at_mm: [2825, -500, -370]}
+)")
+                  .ok());
+  fs::create_directories(dir_ / "small.json");
+  EXPECT_EQ(Run({"--scene", scene, "--out", dir_.string()}), 2);
+  fs::remove(scene);
+  EXPECT_FALSE(fs::exists(dir_ / "small.png"));
+  EXPECT_TRUE(fs::is_directory(dir_ / "small.json")) << "a folder in the way is the user's, not removed";
+}
+
 TEST_F(SimRenderCommandTest, HelpNamesTheOptions) {
   CliApp cli("test", "idi-workcell");
   AddSimRenderCommand(cli);

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "shared/kinematics/rx130.h"
+#include "shared/runtime/cli.h"
 #include "shared/runtime/param_file.h"
 #include "shared/util/atomic_file.h"
 #include "shared/util/units.h"
@@ -62,9 +63,10 @@ Result<std::vector<std::pair<int, std::vector<double>>>> ReadCsv(const std::stri
       const char* begin = cells[c].c_str();
       char* end = nullptr;
       const double v = std::strtod(begin, &end);
-      if (cells[c].empty() || end != begin + cells[c].size() || !std::isfinite(v)) {
+      // Decimal only: strtod also reads hexadecimal ("0x10" is 16), "inf" and "nan".
+      if (!IsDecimalNumber(cells[c]) || end != begin + cells[c].size() || !std::isfinite(v)) {
         return ParseError(path + ":" + std::to_string(line_no) + ": column '" + columns[c] + "': '" +
-                          cells[c].substr(0, 40) + "' is not a finite number");
+                          cells[c].substr(0, 40) + "' is not a finite decimal number");
       }
       values.push_back(v);
     }

@@ -529,5 +529,69 @@ TEST_F(CalibrateCommandTest, ImpossibleJointReadingsAreRefused) {
   EXPECT_FALSE(std::filesystem::exists(P("x.yaml")));
 }
 
+// Numbers in an observation file are decimal: strtod read "0x10" as 16 deg (a reading the arm can give),
+// and "inf"/"nan" are not readings. Refused naming the file, the line and the column, exit 2.
+TEST_F(CalibrateCommandTest, NonDecimalNumbersInObservationFilesAreRefused) {
+  {
+    std::ofstream f(P("robot.csv"));
+    f << kRobotCsvHeader << "\n1,10,-40,80,0,30,0\n2,0x10,-40,80,0,30,0\n";
+    std::ofstream rail(P("rail.csv"));
+    rail << kRailCsvHeader << "\n10,-40,80,0,30,0,0,10,-40,80,0,30,0,0\n10,-40,80,0,30,0,0,10,-40,80,0,30,0,0X1p3\n";
+  }
+  const auto robot = ReadRobotObservations(P("robot.csv"));
+  ASSERT_FALSE(robot.ok()) << "0x10 read as 16 deg";
+  EXPECT_EQ(robot.status().code(), StatusCode::kParseError);
+  EXPECT_NE(
+      robot.status().message().find(P("robot.csv") + ":3: column 'j1_deg': '0x10' is not a finite decimal number"),
+      std::string::npos)
+      << robot.status().message();
+  const auto rail = ReadRailObservations(P("rail.csv"));
+  ASSERT_FALSE(rail.ok());
+  EXPECT_NE(rail.status().message().find(P("rail.csv") + ":3: column 'r2_rail_mm': '0X1p3' is not a finite decimal"),
+            std::string::npos)
+      << rail.status().message();
+  EXPECT_EQ(Run({"calibrate",
+                 "robot",
+                 "--observations",
+                 P("robot.csv"),
+                 "--distance-mm",
+                 "1000",
+                 "--out",
+                 P("x.yaml"),
+                 "-q"}),
+            2);
+  EXPECT_FALSE(std::filesystem::exists(P("x.yaml")));
+}
+
+// A noise std far beyond the cell's size (1e300 mm) is refused before any work with the option and the
+// bound named, exit 2 (before: the twin's acquisition ran and the solve's residuals overflowed to NaN,
+// Ceres printing pages of diagnostics, exit 1).
+TEST_F(CalibrateCommandTest, NoiseLevelsBeyondTheCellAreRefusedUpFront) {
+  RobotCommandOptions robot;
+  robot.sim = true;
+  robot.out = P("robot.yaml");
+  robot.spot_sigma_mm = 1e300;
+  Status st = RunCalibrateRobot(robot);
+  EXPECT_EQ(st.code(), StatusCode::kOutOfRange) << st.ToString();
+  EXPECT_NE(st.message().find("calibrate robot: --spot-sigma-mm: 1e+300 mm is out of range (a noise std is at most "
+                              "1000 mm)"),
+            std::string::npos)
+      << st.message();
+  robot.spot_sigma_mm = 0.05;
+  robot.distance_sigma_mm = 2000;
+  st = RunCalibrateRobot(robot);
+  EXPECT_NE(st.message().find("--distance-sigma-mm: 2000 mm is out of range"), std::string::npos) << st.message();
+  RtuCommandOptions rtu;
+  rtu.sim = true;
+  rtu.out = P("rail.yaml");
+  rtu.rail_sigma_mm = 1e300;
+  st = RunCalibrateRtu(rtu);
+  EXPECT_NE(st.message().find("calibrate rtu: --rail-sigma-mm: 1e+300 mm is out of range"), std::string::npos)
+      << st.message();
+  EXPECT_EQ(Run({"calibrate", "robot", "--sim", "--spot-sigma-mm", "1e300", "--out", P("robot.yaml"), "-q"}), 2);
+  EXPECT_EQ(Run({"calibrate", "rtu", "--sim", "--spot-sigma-mm", "1e300", "--out", P("rail.yaml"), "-q"}), 2);
+  EXPECT_TRUE(std::filesystem::is_empty(dir_));
+}
+
 }  // namespace
 }  // namespace idi::workcell

@@ -59,7 +59,7 @@ Status WritePtuCalibration(const std::string& path, const calib::PtuCalibrationR
   YAML::Emitter e;
   e.SetDoublePrecision(12);
   e << YAML::BeginMap;
-  e << YAML::Key << "model" << YAML::Value << "biclops-ptu";
+  e << YAML::Key << "model" << YAML::Value << kPtuCalibrationModel;
   for (const calib::PtuCameraCalibration& c : r.cameras) {
     e << YAML::Key << BiclopsSideName(c.side) << YAML::Value << YAML::BeginMap;
     e << YAML::Key << "image_width_px" << YAML::Value << c.model.width;
@@ -102,6 +102,7 @@ Result<std::vector<calib::PtuCameraModel>> LoadPtuCalibration(const std::string&
     return ParseError(fmt::format("{}:{}: malformed YAML: {}", path, ex.mark.line + 1, ex.msg));
   }
   if (!root.IsMap()) return ParseError(path + ": expected a map");
+  IDI_RETURN_IF_ERROR(CheckParamFileModel(root, {kPtuCalibrationModel}, path));
   std::vector<calib::PtuCameraModel> out;
   for (BiclopsSide side : {BiclopsSide::kLeft, BiclopsSide::kRight}) {
     const YAML::Node node = root[BiclopsSideName(side)];

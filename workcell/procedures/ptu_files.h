@@ -18,13 +18,17 @@
 
 namespace idi::workcell {
 
+// The `model` of the result file (LoadPtuCalibration refuses a file of another model).
+inline constexpr const char* kPtuCalibrationModel = "biclops-ptu";
+
 Result<std::vector<calib::PtuObservation>> ReadPtuObservations(const std::string& path);
 Status WritePtuObservations(const std::string& path, const std::vector<calib::PtuObservation>& observations);
 
 // `validation` may be null.
 Status WritePtuCalibration(const std::string& path, const calib::PtuCalibrationResult& result,
                            const calib::PtuValidation* validation);
-// The camera models of a result file (those present), e.g. as start values.
+// The camera models of a result file (those present), e.g. as start values. A file whose `model` is not
+// kPtuCalibrationModel is refused, naming the file and the line.
 Result<std::vector<calib::PtuCameraModel>> LoadPtuCalibration(const std::string& path);
 
 // {"point_mm": [x, y, z], "point_std_mm", "residual_rms_px", "validation_rms_px", "cameras": [...],
