@@ -18,6 +18,7 @@
 #include <ctime>
 #include <filesystem>
 #include <iterator>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -619,30 +620,37 @@ class NotifySocket {
   NotifySocket(const NotifySocket&) = delete;
   NotifySocket& operator=(const NotifySocket&) = delete;
   bool bound() const { return bound_; }
-  // Whether READY=1 came since the last call (a command's notifications are all read by the time it
-  // returns: they are sent before it returns, and read within the reader's next poll).
+  // Whether READY=1 came since the last call. sd_notify has queued a command's notifications by the time
+  // it returns; what the reader has not taken yet is read here, and the lock makes sure that a datagram it
+  // has taken is also looked at.
   bool Ready() {
-    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+    std::lock_guard<std::mutex> lock(mu_);
+    DrainLocked();
     return ready_.exchange(false);
   }
 
  private:
-  void Read() {
+  void DrainLocked() {
     char buf[512];
+    ssize_t n;
+    while ((n = ::recv(fd_, buf, sizeof(buf) - 1, 0)) > 0) {
+      buf[n] = 0;
+      if (std::strstr(buf, "READY=1") != nullptr) ready_ = true;
+    }
+  }
+  void Read() {
     while (!stop_) {
       pollfd p{fd_, POLLIN, 0};
       if (::poll(&p, 1, 20) <= 0) continue;
-      ssize_t n;
-      while ((n = ::recv(fd_, buf, sizeof(buf) - 1, 0)) > 0) {
-        buf[n] = 0;
-        if (std::strstr(buf, "READY=1") != nullptr) ready_ = true;
-      }
+      std::lock_guard<std::mutex> lock(mu_);
+      DrainLocked();
     }
   }
   std::string path_;
   int fd_ = -1;
   bool bound_ = false;
   std::atomic<bool> ready_{false}, stop_{false};
+  std::mutex mu_;  // one reader at a time: the thread or Ready()
   std::thread reader_;
 };
 
