@@ -42,13 +42,6 @@ class LogFrames final : public FrameSource {
   std::size_t next_ = 0;
 };
 
-// The number of the last line of the drive log's can.log (its torn one, which has no newline), for the
-// warning: the reader drops it without counting (read again only then). 0: unreadable.
-int CanLogLastLine(const std::string& dir) {
-  const auto text = ReadFile((std::filesystem::path(dir) / replay::kDriveLogCanFile).string());
-  return text.ok() ? static_cast<int>(std::count(text->begin(), text->end(), '\n')) + 1 : 0;
-}
-
 }  // namespace
 
 Result<ReplayResult> RunReplay(const ReplayOptions& o) {
@@ -73,7 +66,7 @@ Result<ReplayResult> RunReplay(const ReplayOptions& o, const replay::DriveLog& l
     spdlog::warn("{}/{}:{}: the last line has no newline (the recorder stopped mid-line?); dropped: '{}'",
                  o.dir,
                  replay::kDriveLogCanFile,
-                 CanLogLastLine(o.dir),
+                 log.can_torn_line,
                  log.can_torn_last_line);
   }
   // The pipeline as it was configured when the log was recorded.

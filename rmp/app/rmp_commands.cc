@@ -169,40 +169,47 @@ Status CheckReplayFiles(const ReplayOptions& o, const replay::DriveLog& log) {
 }
 
 // The drive log folder of `run` and `sim`, made before the run (and before the service says it is ready).
-// `made`: by this run (removed again when the run leaves it empty, so that a service systemd restarts does
-// not leave one per attempt).
+// `made`: by this run, with the missing folders on its way from `top` down, which are removed again when
+// the run leaves them empty (so that a failed run, or a service systemd restarts, leaves none behind).
 struct RecordFolder {
   std::string path;  // empty: none
   bool made = false;
+  std::filesystem::path top;  // the first folder on the way that this run made (path itself at most)
   ~RecordFolder() {
+    if (!made) return;
     std::error_code ec;
-    if (made && std::filesystem::is_empty(path, ec) && !ec) std::filesystem::remove(path, ec);
+    for (std::filesystem::path p = path; !p.empty(); p = p.parent_path()) {
+      if (!std::filesystem::is_empty(p, ec) || ec || !std::filesystem::remove(p, ec)) return;
+      if (top.empty() || p == top) return;
+    }
   }
   RecordFolder() = default;
   RecordFolder(const RecordFolder&) = delete;
   RecordFolder& operator=(const RecordFolder&) = delete;
 };
 
-// --record of `command` (run, sim): a new or empty folder, made here (its parents too). One that holds
-// files or cannot be made is the command line's fault (exit 2), told before the run rather than when the
-// recorder starts.
+// --record of `command` (run, sim): a new or empty folder (CheckNewOutputFolder), made here with its
+// parents. One that holds files or cannot be made is the command line's fault (exit 2), told before the
+// run rather than when the recorder starts.
 Status MakeRecordFolder(const std::string& command, const std::string& path, RecordFolder* folder) {
   namespace fs = std::filesystem;
+  IDI_RETURN_IF_ERROR(BeforeTheRun(CheckNewOutputFolder(path, command + ": --record")));
   std::error_code ec;
-  if (fs::is_directory(path, ec)) {
-    if (!fs::is_empty(path, ec) || ec) {
-      return InvalidArgument(command + ": --record " + path +
-                             ": the folder is not empty (a drive log needs a new or empty one)");
+  if (!fs::is_directory(path, ec)) {
+    fs::path top;
+    for (fs::path p = path; !p.empty() && !fs::exists(fs::symlink_status(p, ec)); p = p.parent_path()) top = p;
+    const bool made = fs::create_directories(path, ec);
+    if (ec || !fs::is_directory(path, ec)) {
+      std::error_code link_ec;
+      const std::string why = fs::is_symlink(path, link_ec)
+                                  ? "it is a link to " + fs::read_symlink(path, link_ec).string() + ", not to a folder"
+                              : ec ? ec.message()
+                                   : std::string("something else is there");
+      return InvalidArgument(command + ": --record " + path + ": cannot make the folder: " + why);
     }
-  } else if (fs::create_directories(path, ec); ec || !fs::is_directory(path, ec)) {
-    std::error_code link_ec;
-    const std::string why = fs::is_symlink(path, link_ec)
-                                ? "it is a link to " + fs::read_symlink(path, link_ec).string() + ", not to a folder"
-                            : ec ? ec.message()
-                                 : std::string("something else is there");
-    return InvalidArgument(command + ": --record " + path + ": cannot make the folder: " + why);
-  } else {
-    folder->made = true;
+    // Made by another process in between: theirs, not removed.
+    folder->made = made;
+    folder->top = top;
   }
   folder->path = path;
   return Status::Ok();
@@ -403,7 +410,7 @@ CLI::App* AddSimRunCommand(CliApp& cli, CLI::App* sim) {
   if (sim == nullptr) sim = cli.app.add_subcommand("sim", "the closed loop in the digital twin (and its tools)");
   sim->add_option("--track", o->track, "TRACK.yaml: the taped track (DESIGN.md §6)");
   sim->add_flag("--json", o->json, "print the report as JSON on stdout");
-  sim->add_option("--record", o->record, "write a drive log (images, CAN, ticks) to this new folder");
+  sim->add_option("--record", o->record, "write a drive log (images, CAN, ticks) to this new or empty folder");
   sim->add_option("--can-log", o->can_log, "write the RMP's CAN traffic in candump -l format");
   sim->add_option("--png", o->png, "write the track with the driven path and the lateral error");
   sim->add_option("--report", o->report, "also write the JSON report to this file");

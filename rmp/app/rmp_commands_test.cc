@@ -230,6 +230,13 @@ TEST_F(RmpCommandsTest, SimRefusesANonEmptyRecordFolderBeforeTheRun) {
   const auto [rc, err] = RunCapturingErrors({"sim", "--track", bad_track, "--record", (dir_ / "new").string()});
   EXPECT_EQ(rc, 2) << err;
   EXPECT_FALSE(fs::exists(dir_ / "new"));
+  // Nor are the parents it made on the way; a folder that was there stays.
+  fs::create_directories(dir_ / "kept");
+  const auto [rc2, err2] =
+      RunCapturingErrors({"sim", "--track", bad_track, "--record", (dir_ / "kept" / "a" / "b").string()});
+  EXPECT_EQ(rc2, 2) << err2;
+  EXPECT_FALSE(fs::exists(dir_ / "kept" / "a"));
+  EXPECT_TRUE(fs::is_directory(dir_ / "kept"));
 }
 
 TEST_F(RmpCommandsTest, SimOutputFailingAfterTheRunKeepsTheReport) {

@@ -97,9 +97,17 @@ Status TrackSpec::Check() const {
                              "] must satisfy 0 <= from < to <= track length (" + std::to_string(len) + " m)");
     }
   }
-  if (TapedRanges(len, gaps_m).empty()) {
-    return InvalidArgument(
-        fmt::format("{}: gaps_m cover the whole track ({:g} m): no tape would be laid", source, len));
+  // The tape the gaps leave: as much as a track needs (TapedRanges keeps pieces down to 1 mm).
+  double taped = 0;
+  for (const auto& [a, b] : TapedRanges(len, gaps_m)) taped += b - a;
+  if (!(taped >= kMinTrackLengthM - 1e-9 && taped > tape_width_m)) {  // 1e-9: 1 - 0.9 is 0.0999...
+    return InvalidArgument(fmt::format(
+        "{}: gaps_m cover the whole track ({:g} m) but {:g} m: at least {:g} m of tape, and more than its width, "
+        "must be laid",
+        source,
+        len,
+        taped,
+        std::max(kMinTrackLengthM, tape_width_m)));
   }
   if (has_start) {
     const std::string where = start_line > 0 ? fmt::format("{}:{}", source, start_line) : source;

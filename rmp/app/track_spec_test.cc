@@ -68,6 +68,7 @@ TEST(TrackSpecTest, RefusesTracksThatCannotBeDrivenNamingTheKey) {
            {line + "start: {x_m: 0, y_m: 0, yaw_rad: .inf}\n", "t.yaml:2: start.yaw_rad is not a finite number"},
            {line + "gaps_m: [[0, 0.6], [0.5, 1.0]]\n", "t.yaml: gaps_m cover the whole track"},
            {line + "gaps_m: [[0, 1.0]]\n", "t.yaml: gaps_m cover the whole track"},
+           {line + "gaps_m: [[0, 0.998]]\n", "t.yaml: gaps_m cover the whole track (1 m) but 0.002 m"},
            {"points_m: [[0, 0], [0.002, 0]]\n", "t.yaml: points_m: the track is 0.002 m long"},
            {"tape_width_m: 0.3\npoints_m: [[0, 0], [0.2, 0]]\n", "t.yaml: points_m: the track is 0.2 m long"}}) {
     const auto t = ParseTrackYaml(text, "t.yaml");

@@ -213,8 +213,10 @@ Result<CandumpRecord> ParseCandumpLine(std::string_view line, std::string_view w
 
 Result<std::vector<CandumpRecord>> ParseCandumpText(std::string_view text,
                                                     std::string_view source_name,
-                                                    std::string* torn_last_line) {
+                                                    std::string* torn_last_line,
+                                                    int* torn_line_no) {
   if (torn_last_line != nullptr) torn_last_line->clear();
+  if (torn_line_no != nullptr) *torn_line_no = 0;
   std::vector<CandumpRecord> records;
   int line_no = 0;
   std::size_t pos = 0;
@@ -229,6 +231,7 @@ Result<std::vector<CandumpRecord>> ParseCandumpText(std::string_view text,
     if (trimmed.empty() || trimmed.front() != '(') continue;  // comment, as canplayer skips it
     if (unterminated) {                                       // torn (see the header)
       if (torn_last_line != nullptr) *torn_last_line = std::string(trimmed);
+      if (torn_line_no != nullptr) *torn_line_no = line_no;
       break;
     }
     Result<CandumpRecord> r = ParseCandumpLine(trimmed, std::string(source_name) + ":" + std::to_string(line_no));
@@ -239,9 +242,11 @@ Result<std::vector<CandumpRecord>> ParseCandumpText(std::string_view text,
   return records;
 }
 
-Result<std::vector<CandumpRecord>> ReadCandumpFile(const std::string& path, std::string* torn_last_line) {
+Result<std::vector<CandumpRecord>> ReadCandumpFile(const std::string& path,
+                                                   std::string* torn_last_line,
+                                                   int* torn_line_no) {
   IDI_ASSIGN_OR_RETURN(const std::string text, ReadFile(path));
-  return ParseCandumpText(text, path, torn_last_line);
+  return ParseCandumpText(text, path, torn_last_line, torn_line_no);
 }
 
 Status CandumpWriterOptions::Check() const {

@@ -52,11 +52,15 @@ Result<CandumpRecord> ParseCandumpLine(std::string_view line, std::string_view w
 // naming `source_name` and the line number. A last frame line without its newline is one the writer
 // was stopped in the middle of (a power cut on the vehicle; candump and CandumpWriter end every line):
 // it is dropped even when it parses, since a line cut after an even number of data digits reads as a
-// shorter frame; the log up to it is kept, and the dropped text goes to `torn_last_line` when given.
+// shorter frame; the log up to it is kept, and the dropped text goes to `torn_last_line` and its line
+// number to `torn_line_no` when given (0 and empty when there is none).
 Result<std::vector<CandumpRecord>> ParseCandumpText(std::string_view text,
                                                     std::string_view source_name,
-                                                    std::string* torn_last_line = nullptr);
-Result<std::vector<CandumpRecord>> ReadCandumpFile(const std::string& path, std::string* torn_last_line = nullptr);
+                                                    std::string* torn_last_line = nullptr,
+                                                    int* torn_line_no = nullptr);
+Result<std::vector<CandumpRecord>> ReadCandumpFile(const std::string& path,
+                                                   std::string* torn_last_line = nullptr,
+                                                   int* torn_line_no = nullptr);
 
 struct CandumpWriterOptions {
   std::string interface = "can0";

@@ -162,11 +162,13 @@ TEST(CandumpParse, TextSkipsCommentsAndNamesTheBadLine) {
   EXPECT_NE(bad.status().message().find("a.log:5"), std::string::npos) << bad.status().message();
   // The same bad line as the file's last, without its newline: a writer killed mid-line; the rest is kept.
   std::string dropped;
+  int dropped_line = -1;
   Result<std::vector<CandumpRecord>> torn =
-      ParseCandumpText(text + "(0000000000.020000) can0 402#00112", "a.log", &dropped);
+      ParseCandumpText(text + "(0000000000.020000) can0 402#00112", "a.log", &dropped, &dropped_line);
   ASSERT_TRUE(torn.ok()) << torn.status().ToString();
   EXPECT_EQ(torn->size(), 2u);
   EXPECT_EQ(dropped, "(0000000000.020000) can0 402#00112");
+  EXPECT_EQ(dropped_line, 5);
   // Cut after an even number of data digits it would parse, as a shorter frame: dropped all the same.
   Result<std::vector<CandumpRecord>> cut =
       ParseCandumpText(text + "(0000000000.020000) can0 402#0011", "a.log", &dropped);
@@ -174,8 +176,9 @@ TEST(CandumpParse, TextSkipsCommentsAndNamesTheBadLine) {
   EXPECT_EQ(cut->size(), 2u);
   EXPECT_EQ(dropped, "(0000000000.020000) can0 402#0011");
   // A log whose every line ends: nothing dropped.
-  ASSERT_TRUE(ParseCandumpText(text, "a.log", &dropped).ok());
+  ASSERT_TRUE(ParseCandumpText(text, "a.log", &dropped, &dropped_line).ok());
   EXPECT_TRUE(dropped.empty());
+  EXPECT_EQ(dropped_line, 0);
 }
 
 TEST(CandumpFile, MissingFileIsNotFound) {

@@ -132,7 +132,7 @@ Result<DriveLog> ReadDriveLog(const std::string& dir) {
   }
   const std::string can_path = (fs::path(dir) / kDriveLogCanFile).string();
   if (!fs::exists(can_path)) return NotFound(can_path + ": the drive log has no CAN log");
-  IDI_ASSIGN_OR_RETURN(log.can, ReadCandumpFile(can_path, &log.can_torn_last_line));
+  IDI_ASSIGN_OR_RETURN(log.can, ReadCandumpFile(can_path, &log.can_torn_last_line, &log.can_torn_line));
   // The driver writes its frames as they come, on one clock: a time that goes backwards is a damaged or
   // hand-edited log, which the replay would feed in a different order than the recorded run saw it.
   for (std::size_t k = 1; k < log.can.size(); ++k) {

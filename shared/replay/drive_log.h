@@ -76,6 +76,7 @@ struct DriveLog {
   std::vector<DriveTickRecord> ticks;
   std::vector<CandumpRecord> can;
   std::string can_torn_last_line;  // can.log's last line, dropped: it has no newline (see ParseCandumpText)
+  int can_torn_line = 0;           // its line number (0: none)
 };
 
 // Reads a drive log. ParseError naming the file (and line) for malformed content, a recording of

@@ -217,14 +217,20 @@ Status CheckNewOutputFolder(const std::string& path,
   namespace fs = std::filesystem;
   IDI_RETURN_IF_ERROR(CheckOutputFolder(path, what));
   std::error_code ec;
+  if (!path.empty() && fs::is_symlink(path, ec) && !fs::exists(path, ec)) {
+    return InvalidArgument(what + " " + path + ": it is a link to " + fs::read_symlink(path, ec).string() +
+                           ", which does not exist");
+  }
   if (path.empty() || !fs::is_directory(path, ec)) return Status::Ok();  // made by the run
   for (fs::directory_iterator it(path, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    if (std::find(may_hold.begin(), may_hold.end(), name) != may_hold.end()) continue;
+    std::error_code kind_ec;
+    if (std::find(may_hold.begin(), may_hold.end(), name) != may_hold.end() && it->is_directory(kind_ec)) continue;
     return InvalidArgument(what + " " + path + ": the folder is not empty (it holds '" + name +
                            "'; give a new or empty folder, results of two runs would mix)");
   }
-  if (ec) return IoError(what + " " + path + ": cannot list the folder: " + ec.message());
+  // Nothing has run yet: the command line's folder is at fault (exit 2).
+  if (ec) return InvalidArgument(what + " " + path + ": cannot list the folder: " + ec.message());
   return Status::Ok();
 }
 

@@ -26,7 +26,8 @@ Status CheckOutputFile(const std::string& path, const std::string& what);
 Status CheckOutputFolder(const std::string& path, const std::string& what);
 // CheckOutputFolder, and the folder is new or empty, so that a run's results are not mixed with an earlier
 // run's: one holding anything but the entries named in `may_hold` (e.g. a folder the command itself keeps
-// there between runs) is refused (InvalidArgument naming the folder and an entry it holds).
+// there between runs, if they are folders) is refused (InvalidArgument naming the folder and an entry it
+// holds), as are a folder that cannot be listed and a link to nothing.
 Status CheckNewOutputFolder(const std::string& path,
                             const std::string& what,
                             const std::vector<std::string>& may_hold = {});

@@ -68,6 +68,28 @@ TEST_F(AtomicFileTest, CheckOutputFileBeforeALongRun) {
   EXPECT_EQ(CheckOutputFolder((dir_ / "file" / "plots").string(), "--plots").code(), StatusCode::kInvalidArgument);
 }
 
+// A run's output folder is new or empty, so that two runs' results never mix; the entries the command
+// keeps there between runs may stay, if they are folders. A link to nothing is refused, not made later.
+TEST_F(AtomicFileTest, ANewOutputFolderIsNewOrEmpty) {
+  EXPECT_TRUE(CheckNewOutputFolder((dir_ / "new" / "run").string(), "--out").ok());
+  fs::create_directories(dir_ / "empty");
+  EXPECT_TRUE(CheckNewOutputFolder((dir_ / "empty").string(), "--out").ok());
+  fs::create_directories(dir_ / "used" / "calibration");
+  const Status held = CheckNewOutputFolder((dir_ / "used").string(), "--out");
+  EXPECT_EQ(held.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(held.message().find("it holds 'calibration'"), std::string::npos) << held.message();
+  EXPECT_TRUE(CheckNewOutputFolder((dir_ / "used").string(), "--out", {"calibration"}).ok());
+  // A file of that name is not the folder the command keeps.
+  fs::create_directories(dir_ / "file");
+  ASSERT_TRUE(WriteFileAtomically((dir_ / "file" / "calibration").string(), "x\n").ok());
+  EXPECT_EQ(CheckNewOutputFolder((dir_ / "file").string(), "--out", {"calibration"}).code(),
+            StatusCode::kInvalidArgument);
+  fs::create_symlink(dir_ / "nowhere", dir_ / "dangling");
+  const Status dangling = CheckNewOutputFolder((dir_ / "dangling").string(), "--out");
+  EXPECT_EQ(dangling.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(dangling.message().find("which does not exist"), std::string::npos) << dangling.message();
+}
+
 TEST_F(AtomicFileTest, MissingFolderIsAnErrorNamingThePath) {
   const std::string path = (dir_ / "no_such_dir" / "x.yaml").string();
   const Status st = WriteFileAtomically(path, "x");

@@ -682,9 +682,15 @@ void AddCalibrateCommand(CliApp& cli) {
                     "with --sim: where to save them (FILE.partial.csv if the acquisition ends early)");
   robot->add_option("--report", ro->report, "JSON report");
   robot->add_option("--plots", ro->plots, "folder for PNG plots (cost per iteration, held-out spread)");
-  robot->add_option("--spot-sigma-mm", ro->spot_sigma_mm, "spot noise on the wall per axis (noise model; twin camera)")
+  robot
+      ->add_option(
+          "--spot-sigma-mm", ro->spot_sigma_mm, "spot noise on the wall per axis (noise model; twin camera), [0, 1000]")
       ->capture_default_str();
-  robot->add_option("--distance-sigma-mm", ro->distance_sigma_mm, "std of D (translate: two rail moves, sqrt(2) x their repeatability)")->capture_default_str();
+  robot
+      ->add_option("--distance-sigma-mm",
+                   ro->distance_sigma_mm,
+                   "std of D (translate: two rail moves, sqrt(2) x their repeatability), [0, 1000]")
+      ->capture_default_str();
   robot->add_flag("--sim", ro->sim, "run the whole procedure, acquisition included, in the digital twin");
   robot->add_option("--seed", ro->seed, "digital twin seed")->capture_default_str();
   robot->add_option("--arm", ro->arm, "which robot (--sim)")->check(CLI::Range(1, 2))->capture_default_str();
@@ -713,8 +719,8 @@ void AddCalibrateCommand(CliApp& cli) {
   rtu->add_option("--out", to->out, "result YAML (psi_x_mm, psi_y_mm, psi_z_mm, psi_alpha_deg with std)")->required();
   rtu->add_option("--report", to->report, "JSON report");
   rtu->add_option("--plots", to->plots, "folder for PNG plots");
-  rtu->add_option("--spot-sigma-mm", to->spot_sigma_mm, "spot noise per axis")->capture_default_str();
-  rtu->add_option("--rail-sigma-mm", to->rail_sigma_mm, "rail repeatability (std)")->capture_default_str();
+  rtu->add_option("--spot-sigma-mm", to->spot_sigma_mm, "spot noise per axis, [0, 1000]")->capture_default_str();
+  rtu->add_option("--rail-sigma-mm", to->rail_sigma_mm, "rail repeatability (std), [0, 1000]")->capture_default_str();
   rtu->add_flag("--sim", to->sim, "run the whole procedure in the digital twin");
   rtu->add_option("--seed", to->seed, "digital twin seed")->capture_default_str();
   rtu->add_option("--readings", to->readings, "readings to acquire (--sim)")->check(CLI::Range(20, 100000))->capture_default_str();

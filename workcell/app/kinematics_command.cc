@@ -211,7 +211,8 @@ void AddKinematicsCommand(CliApp& cli) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--joints-deg", o->joints_deg, "six joint readings in degrees, comma separated")
       ->capture_default_str();
-  cmd->add_option("--aim-mm", o->aim_mm, "aim the laser at x,y,z (robot base frame, mm) by inverse kinematics");
+  cmd->add_option(
+      "--aim-mm", o->aim_mm, "aim the laser at x,y,z (robot base frame, mm, at most 100 m away) by inverse kinematics");
   cmd->add_flag("--json", o->json, "print one JSON object on stdout");
 }
 

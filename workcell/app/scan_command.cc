@@ -40,13 +40,18 @@ Status RunScanCli(ScanCliOptions& o) {
         "backend does not serve yet)");
   }
   IDI_RETURN_IF_ERROR(ParseObject(o.scan.object).status());
-  // A new or empty run folder: images, overlays and reports of two runs would mix. Without --calibration
-  // it may hold the calibration folder an earlier run left there (reused, as documented).
-  IDI_RETURN_IF_ERROR(CheckNewOutputFolder(
-      o.scan.out,
-      "scan: --out",
-      o.calibration_dir.empty() ? std::vector<std::string>{"calibration"} : std::vector<std::string>{}));
+  // A new or empty run folder: images, overlays and reports of two runs would mix. It may hold the
+  // calibration folder (OUT/calibration without --calibration, or a --calibration inside OUT), which is
+  // reused, as documented.
   const std::string cal_dir = o.calibration_dir.empty() ? (fs::path(o.scan.out) / "calibration").string() : o.calibration_dir;
+  std::vector<std::string> may_hold;
+  {
+    std::error_code ec;
+    const fs::path out = fs::weakly_canonical(fs::absolute(o.scan.out, ec), ec);
+    const fs::path rel = fs::weakly_canonical(fs::absolute(cal_dir, ec), ec).lexically_relative(out);
+    if (!ec && !rel.empty() && *rel.begin() != ".." && *rel.begin() != ".") may_hold.push_back(rel.begin()->string());
+  }
+  IDI_RETURN_IF_ERROR(CheckNewOutputFolder(o.scan.out, "scan: --out", may_hold));
   IDI_ASSIGN_OR_RETURN(const CalibrationFiles files, EnsureSimCalibration(cal_dir, o.scan.seed));
   IDI_ASSIGN_OR_RETURN(const ScanCalibration cal, LoadScanCalibration(files));
   IDI_ASSIGN_OR_RETURN(const nlohmann::json report, RunSimScan(o.scan, cal));

@@ -64,6 +64,10 @@ TEST_F(ScanCommandTest, AnOutFolderWithResultsIsRefused) {
   EXPECT_EQ(Run({"--out", Path("out2")}, &err), 2) << err;
   EXPECT_EQ(err.find("not empty"), std::string::npos) << err;
   EXPECT_NE(err.find("made in the twin of seed 7, not 1"), std::string::npos) << err;
+  // --calibration naming that folder (README's way to reuse it) is the same run.
+  EXPECT_EQ(Run({"--calibration", Path("out2/calibration"), "--out", Path("out2")}, &err), 2) << err;
+  EXPECT_EQ(err.find("not empty"), std::string::npos) << err;
+  EXPECT_NE(err.find("made in the twin of seed 7, not 1"), std::string::npos) << err;
   // With --calibration elsewhere, OUT/calibration is not the run's.
   EXPECT_EQ(Run({"--calibration", Path("cal"), "--out", Path("out2")}, &err), 2) << err;
   EXPECT_NE(err.find("it holds 'calibration'"), std::string::npos) << err;

@@ -51,19 +51,8 @@ Result<std::vector<sim::WrittenImage>> RenderWorkcellScene(const sim::WorkcellSc
     sim::GroundTruth truth;
     auto image = sim::RenderScene(built.scene, v.camera, v.cam_from_world, v.render, &truth);
     if (!image.ok()) return image.status().WithContext(spec.source + ": camera '" + v.name + "'");
-    auto w = sim::WriteImageWithTruth(*image, truth, out_dir, v.name);
-    if (!w.ok()) {
-      // The PNG is written before its truth: a JSON that cannot be written (a folder in its place, a full
-      // disk) left a PNG without it. A failure leaves neither (a folder in the way is not removed).
-      for (const char* ext : {".png", ".json"}) {
-        const std::filesystem::path file = std::filesystem::path(out_dir) / (v.name + ext);
-        if (!std::filesystem::is_directory(std::filesystem::symlink_status(file, ec))) {
-          std::filesystem::remove(file, ec);
-        }
-      }
-      return w.status();
-    }
-    written.push_back(std::move(*w));
+    IDI_ASSIGN_OR_RETURN(sim::WrittenImage w, sim::WriteImageWithTruth(*image, truth, out_dir, v.name));
+    written.push_back(std::move(w));
   }
   return written;
 }

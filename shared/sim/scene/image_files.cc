@@ -28,7 +28,13 @@ Result<WrittenImage> WriteImageWithTruth(const cv::Mat& image, const GroundTruth
   w.png_path = (std::filesystem::path(dir) / (stem + ".png")).string();
   w.json_path = (std::filesystem::path(dir) / (stem + ".json")).string();
   IDI_RETURN_IF_ERROR(plot::WritePngFile(w.png_path, image));
-  IDI_RETURN_IF_ERROR(WriteFileAtomically(w.json_path, GroundTruthToJson(truth) + "\n"));
+  if (Status st = WriteFileAtomically(w.json_path, GroundTruthToJson(truth) + "\n"); !st.ok()) {
+    // An image without its truth is not written: a failure leaves neither (the PNG was written whole above,
+    // so it is this call's own file that is removed).
+    std::error_code ec;
+    std::filesystem::remove(w.png_path, ec);
+    return st;
+  }
   w.width = image.cols;
   w.height = image.rows;
   w.color = image.channels() == 3;
