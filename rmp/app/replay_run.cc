@@ -5,12 +5,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <optional>
 
 #include "rmp/segway/rmp_codec.h"
 #include "shared/replay/can_log_bus.h"
-#include "shared/util/atomic_file.h"
 
 namespace idi::rmp {
 namespace {

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <map>
 #include <set>
 
@@ -26,20 +27,12 @@ class MapReader {
   std::string Where(const YAML::Node& n) const { return source_ + ":" + std::to_string(n.Mark().line + 1); }
   std::string Key(const std::string& k) const { return path_.empty() ? k : path_ + "." + k; }
 
-  void Number(const std::string& key, double* out) {
-    handlers_[key] = [this, key, out](const YAML::Node& v) -> Status {
-      try {
-        const double d = v.as<double>();
-        if (!std::isfinite(d)) return InvalidArgument(Where(v) + ": " + Key(key) + " is not a finite number");
-        *out = d;
-        return Status::Ok();
-      } catch (const YAML::Exception&) {
-        return InvalidArgument(Where(v) + ": " + Key(key) + " must be a number");
-      }
-    };
-  }
-  // A number in [lo, hi]; `why` says where the bounds come from.
-  void Number(const std::string& key, double* out, double lo, double hi, const std::string& why) {
+  // A finite number, in [lo, hi] when bounds are given (`why` says where they come from).
+  void Number(const std::string& key,
+              double* out,
+              double lo = -std::numeric_limits<double>::infinity(),
+              double hi = std::numeric_limits<double>::infinity(),
+              const std::string& why = "") {
     handlers_[key] = [this, key, out, lo, hi, why](const YAML::Node& v) -> Status {
       double d = 0.0;
       try {
@@ -47,6 +40,7 @@ class MapReader {
       } catch (const YAML::Exception&) {
         return InvalidArgument(Where(v) + ": " + Key(key) + " must be a number");
       }
+      if (!std::isfinite(d)) return InvalidArgument(Where(v) + ": " + Key(key) + " is not a finite number");
       if (!(d >= lo && d <= hi)) {
         return InvalidArgument(
             fmt::format("{}: {} = {:g} must be in [{:g}, {:g}] ({})", Where(v), Key(key), d, lo, hi, why));
