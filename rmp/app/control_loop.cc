@@ -75,16 +75,16 @@ const char* DecisionName(Decision d) {
 
 Status ControlLoopOptions::Check() const {
   if (!(max_perception_age_s > 0 && max_perception_age_s <= kMaxInputAgeLimitS)) {
-    return InvalidArgument("control: max_perception_age_s = " + std::to_string(max_perception_age_s) +
-                           " must be in (0, " + std::to_string(kMaxInputAgeLimitS) + "] s");
+    return InvalidArgument("control: max_perception_age_s = " + FormatNumber(max_perception_age_s) +
+                           " must be in (0, " + FormatNumber(kMaxInputAgeLimitS) + "] s");
   }
   if (!(max_odometry_age_s > 0 && max_odometry_age_s <= kMaxOdometryAgeLimitS)) {
-    return InvalidArgument("control: max_odometry_age_s = " + std::to_string(max_odometry_age_s) + " must be in (0, " +
-                           std::to_string(kMaxOdometryAgeLimitS) + "] s");
+    return InvalidArgument("control: max_odometry_age_s = " + FormatNumber(max_odometry_age_s) + " must be in (0, " +
+                           FormatNumber(kMaxOdometryAgeLimitS) + "] s");
   }
   if (!(track_lost_s > 0 && track_lost_s <= kTrackLostLimitS)) {
-    return InvalidArgument("control: track_lost_s = " + std::to_string(track_lost_s) + " must be in (0, " +
-                           std::to_string(kTrackLostLimitS) + "] s");
+    return InvalidArgument("control: track_lost_s = " + FormatNumber(track_lost_s) + " must be in (0, " +
+                           FormatNumber(kTrackLostLimitS) + "] s");
   }
   if (!(stereo_max_skew_s > 0)) return InvalidArgument("control: stereo_max_skew_s must be positive");
   if (!(finish_hold_s >= 0)) return InvalidArgument("control: finish_hold_s must be >= 0");
@@ -251,8 +251,9 @@ Result<TickRecord> ControlLoop::Step() {
   const bool running = driver_->health().state == RmpDriverState::kRunning;
   if (running && stats_.running_since_ns < 0) stats_.running_since_ns = t;
   if (!running && stats_.running_since_ns < 0 && static_cast<double>(t - start_ns_) * 1e-9 > options_.start_timeout_s) {
-    return DeviceError("the RMP driver did not reach running within " + std::to_string(options_.start_timeout_s) +
-                       " s (state " + RmpDriverStateName(driver_->health().state) + ", " + driver_->health().last_event + ")");
+    return DeviceError("the RMP driver did not reach running within " + FormatNumber(options_.start_timeout_s) +
+                       " s (state " + RmpDriverStateName(driver_->health().state) + ", " +
+                       driver_->health().last_event + ")");
   }
   // Odometry.
   const RmpOdometryPose& op = driver_->odometry().pose();
@@ -341,7 +342,7 @@ Result<TickRecord> ControlLoop::Step() {
     if (d == Decision::kDrive) text += std::string(" (") + PlanStateName(plan.state) + ")";
     if (d == Decision::kRmpNotRunning) text += std::string(" (") + RmpDriverStateName(driver_->health().state) + ")";
     if (d == Decision::kPerceptionStale && last_perception_ns_ >= 0) {
-      text += " (last perception " + std::to_string(static_cast<double>(t - last_perception_ns_) * 1e-9) + " s ago)";
+      text += " (last perception " + FormatNumber(static_cast<double>(t - last_perception_ns_) * 1e-9) + " s ago)";
     }
     if (d == Decision::kStopRequested) text += " (" + stop_reason_ + ")";
     spdlog::info("t={:.3f} s: {}", static_cast<double>(t - start_ns_) * 1e-9, text);

@@ -469,7 +469,7 @@ Result<RmpConfig> ParseRmpConfig(const std::string& text, const std::string& sou
   else
     return InvalidArgument(source + ": backend must be sim, replay or hardware, got '" + backend + "'");
   if (!(rate_hz >= 4.0 && rate_hz <= 100.0)) {
-    return InvalidArgument(source + ": control.rate_hz = " + std::to_string(rate_hz) +
+    return InvalidArgument(source + ": control.rate_hz = " + FormatNumber(rate_hz) +
                            " must be in [4, 100] (the RMP wants a command every 10-300 ms)");
   }
   c.driver.command_rate_hz = rate_hz;

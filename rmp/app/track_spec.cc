@@ -94,7 +94,7 @@ Status TrackSpec::Check() const {
   for (std::size_t i = 0; i < gaps_m.size(); ++i) {
     if (!(gaps_m[i].first >= 0 && gaps_m[i].second > gaps_m[i].first && gaps_m[i].second <= len)) {
       return InvalidArgument(source + ": gaps_m[" + std::to_string(i) +
-                             "] must satisfy 0 <= from < to <= track length (" + std::to_string(len) + " m)");
+                             "] must satisfy 0 <= from < to <= track length (" + FormatNumber(len) + " m)");
     }
   }
   // The tape the gaps leave: as much as a track needs (TapedRanges keeps pieces down to 1 mm).

@@ -159,7 +159,7 @@ Result<RmpConfigRequest> MakeScaleConfig(RmpConfigId id, double fraction) {
       return InvalidArgument(std::string("RMP config: ") + RmpConfigIdName(id) + " is not a scale command");
   }
   if (!(fraction >= 0.0 && fraction <= 1.0)) {
-    return OutOfRange(std::string("RMP config: ") + RmpConfigIdName(id) + " fraction " + std::to_string(fraction) +
+    return OutOfRange(std::string("RMP config: ") + RmpConfigIdName(id) + " fraction " + FormatNumber(fraction) +
                       " is outside [0, 1]");
   }
   // floor, as libsegwayrmp does: a limit is never set above what was asked.
@@ -181,10 +181,12 @@ RmpConfigRequest MakeResetIntegratorsConfig(uint16_t mask) {
 
 Status RmpCommandScaling::Check() const {
   if (!(std::isfinite(velocity_counts_per_mps) && velocity_counts_per_mps > 0.0)) {
-    return InvalidArgument("RMP command scaling: velocity_counts_per_mps must be positive, got " + std::to_string(velocity_counts_per_mps));
+    return InvalidArgument("RMP command scaling: velocity_counts_per_mps must be positive, got " +
+                           FormatNumber(velocity_counts_per_mps));
   }
   if (!(std::isfinite(turn_counts_per_radps) && turn_counts_per_radps > 0.0)) {
-    return InvalidArgument("RMP command scaling: turn_counts_per_radps must be positive, got " + std::to_string(turn_counts_per_radps));
+    return InvalidArgument("RMP command scaling: turn_counts_per_radps must be positive, got " +
+                           FormatNumber(turn_counts_per_radps));
   }
   if (turn_sign != 1 && turn_sign != -1) {
     return InvalidArgument("RMP command scaling: turn_sign must be +1 or -1, got " + std::to_string(turn_sign));
@@ -283,7 +285,8 @@ Result<RmpStatusMessage> RmpCodec::Decode(const hal::CanFrame& frame) const {
       const double roll_deg = GetI16(d, 2) / s.tilt_counts_per_deg;
       const double roll_rate = GetI16(d, 3) / s.rate_counts_per_degps;
       if (std::abs(pitch_deg) > kMaxTiltDeg || std::abs(roll_deg) > kMaxTiltDeg) {
-        return garbage("pitch " + std::to_string(pitch_deg) + " deg / roll " + std::to_string(roll_deg) + " deg beyond 90 deg");
+        return garbage("pitch " + FormatNumber(pitch_deg) + " deg / roll " + FormatNumber(roll_deg) +
+                       " deg beyond 90 deg");
       }
       if (std::abs(pitch_rate) > kMaxRateDegps || std::abs(roll_rate) > kMaxRateDegps) {
         return garbage("tilt rates beyond 600 deg/s");
@@ -298,7 +301,7 @@ Result<RmpStatusMessage> RmpCodec::Decode(const hal::CanFrame& frame) const {
       m.yaw_rate_rps = DegToRad(yaw_degps);
       m.servo_frames = GetU16(d, 3);
       if (std::abs(m.left_wheel_mps) > kMaxWheelSpeedMps || std::abs(m.right_wheel_mps) > kMaxWheelSpeedMps) {
-        return garbage("wheel speeds " + std::to_string(m.left_wheel_mps) + ", " + std::to_string(m.right_wheel_mps) +
+        return garbage("wheel speeds " + FormatNumber(m.left_wheel_mps) + ", " + FormatNumber(m.right_wheel_mps) +
                        " m/s beyond 10 m/s");
       }
       if (std::abs(yaw_degps) > kMaxRateDegps) return garbage("yaw rate beyond 600 deg/s");
@@ -320,7 +323,7 @@ Result<RmpStatusMessage> RmpCodec::Decode(const hal::CanFrame& frame) const {
       m.ui_battery_v = 1.4 + 0.0125 * GetU16(d, 2);
       m.base_battery_v = GetU16(d, 3) / 4.0;
       if (m.ui_battery_v > kMaxUiBatteryV || m.base_battery_v > kMaxBaseBatteryV) {
-        return garbage("battery voltages " + std::to_string(m.ui_battery_v) + " V / " + std::to_string(m.base_battery_v) +
+        return garbage("battery voltages " + FormatNumber(m.ui_battery_v) + " V / " + FormatNumber(m.base_battery_v) +
                        " V beyond 20 V / 100 V");
       }
       return RmpStatusMessage(m);

@@ -18,15 +18,15 @@ constexpr uint32_t kRmpFaultInhibits = kRmpInhibitStatusStale | kRmpInhibitBusOf
 
 Status CheckFraction(const char* name, double v, double min_exclusive) {
   if (!(std::isfinite(v) && v > min_exclusive && v <= 1.0)) {
-    return InvalidArgument(std::string("RMP driver: ") + name + " = " + std::to_string(v) + " must be in (" +
-                           std::to_string(min_exclusive) + ", 1]");
+    return InvalidArgument(std::string("RMP driver: ") + name + " = " + FormatNumber(v) + " must be in (" +
+                           FormatNumber(min_exclusive) + ", 1]");
   }
   return Status::Ok();
 }
 
 Status CheckPositiveValue(const char* name, double v) {
   if (!(std::isfinite(v) && v > 0.0)) {
-    return InvalidArgument(std::string("RMP driver: ") + name + " = " + std::to_string(v) + " must be positive");
+    return InvalidArgument(std::string("RMP driver: ") + name + " = " + FormatNumber(v) + " must be positive");
   }
   return Status::Ok();
 }
@@ -89,7 +89,7 @@ Status RmpDriverOptions::Check() const {
   if (turn_sign != 1 && turn_sign != -1) return InvalidArgument("RMP driver: turn_sign must be +1 or -1");
   // The RMP wants a command at least every 300 ms and at most every 10 ms.
   if (!(std::isfinite(command_rate_hz) && command_rate_hz >= 1.0 / 0.3 && command_rate_hz <= 100.0)) {
-    return InvalidArgument("RMP driver: command_rate_hz = " + std::to_string(command_rate_hz) +
+    return InvalidArgument("RMP driver: command_rate_hz = " + FormatNumber(command_rate_hz) +
                            " is outside 3.4..100 Hz (the RMP needs a command every 10..300 ms)");
   }
   IDI_RETURN_IF_ERROR(CheckPositiveValue("max_input_age_s", max_input_age_s));
@@ -101,10 +101,10 @@ Status RmpDriverOptions::Check() const {
     return InvalidArgument("RMP driver: reconfigure_after_silence_s must be finite and longer than status_timeout_s");
   }
   if (max_input_age_s > kMaxInputAgeLimitS || status_timeout_s > kStatusTimeoutLimitS) {
-    return InvalidArgument("RMP driver: max_input_age_s = " + std::to_string(max_input_age_s) + " (at most " +
-                           std::to_string(kMaxInputAgeLimitS) +
-                           " s) and status_timeout_s = " + std::to_string(status_timeout_s) + " (at most " +
-                           std::to_string(kStatusTimeoutLimitS) + " s): longer is driving on stale data");
+    return InvalidArgument("RMP driver: max_input_age_s = " + FormatNumber(max_input_age_s) + " (at most " +
+                           FormatNumber(kMaxInputAgeLimitS) +
+                           " s) and status_timeout_s = " + FormatNumber(status_timeout_s) + " (at most " +
+                           FormatNumber(kStatusTimeoutLimitS) + " s): longer is driving on stale data");
   }
   IDI_RETURN_IF_ERROR(CheckFraction("velocity_scale", velocity_scale, 1.0 / 16.0 - 1e-9));
   IDI_RETURN_IF_ERROR(CheckFraction("accel_scale", accel_scale, 0.0));
@@ -198,8 +198,8 @@ Status RmpDriver::SetCommand(const RmpMotionCommand& command) {
   if (!std::isfinite(command.speed_mps) || !std::isfinite(command.yaw_rate_rps)) {
     ++health_.counters.invalid_commands;
     command_.reset();
-    return InvalidArgument("RMP driver: command speed " + std::to_string(command.speed_mps) + " m/s, yaw rate " +
-                           std::to_string(command.yaw_rate_rps) + " rad/s is not finite; zero until the next command");
+    return InvalidArgument("RMP driver: command speed " + FormatNumber(command.speed_mps) + " m/s, yaw rate " +
+                           FormatNumber(command.yaw_rate_rps) + " rad/s is not finite; zero until the next command");
   }
   const int64_t now = clock_->NowNs();
   const int64_t age = now - command.source_timestamp_ns;
@@ -208,7 +208,7 @@ Status RmpDriver::SetCommand(const RmpMotionCommand& command) {
     command_.reset();
     command_went_stale_ = true;
     return FailedPrecondition("RMP driver: command refused, its data is " + DriverSeconds(age) + " old (limit " +
-                              std::to_string(options_.max_input_age_s) + " s); zero until a fresh command");
+                              FormatNumber(options_.max_input_age_s) + " s); zero until a fresh command");
   }
   if (static_cast<double>(-age) * 1e-9 > options_.max_input_future_s) {
     ++health_.counters.invalid_commands;

@@ -7,7 +7,8 @@ namespace idi::rmp {
 
 Status RmpOdometryOptions::Check() const {
   if (!(std::isfinite(wheel_separation_m) && wheel_separation_m > 0.1 && wheel_separation_m < 5.0)) {
-    return InvalidArgument("RMP odometry: wheel_separation_m " + std::to_string(wheel_separation_m) + " is not in (0.1, 5) m");
+    return InvalidArgument("RMP odometry: wheel_separation_m " + FormatNumber(wheel_separation_m) +
+                           " is not in (0.1, 5) m");
   }
   if (!(std::isfinite(linear_scale) && linear_scale > 0.1 && linear_scale < 10.0) ||
       !(std::isfinite(angular_scale) && angular_scale > 0.1 && angular_scale < 10.0)) {
@@ -51,8 +52,8 @@ Status RmpOdometry::Update(int64_t t_ns, const RmpIntegratorCounts& counts) {
     ++rejected_jumps_;
     last_ = counts;
     last_ns_ = t_ns;
-    return OutOfRange("RMP odometry: wheel increments " + std::to_string(dl) + " m, " + std::to_string(dr) + " m in " +
-                      std::to_string(dt) + " s are impossible; sample taken as the new reference");
+    return OutOfRange("RMP odometry: wheel increments " + FormatNumber(dl) + " m, " + FormatNumber(dr) + " m in " +
+                      FormatNumber(dt) + " s are impossible; sample taken as the new reference");
   }
   const double ds = 0.5 * (dl + dr);
   double dyaw = options_.angular_scale * (dr - dl) / options_.wheel_separation_m;

@@ -28,7 +28,8 @@ Status SimRmpOptions::Check() const {
     return InvalidArgument("simulated RMP: turn_sign and yaw_rate_sign must be +1 or -1");
   }
   if (!(status_period_s >= 0.005 && status_period_s <= 0.1)) {
-    return InvalidArgument("simulated RMP: status_period_s = " + std::to_string(status_period_s) + " is outside 5..100 ms");
+    return InvalidArgument("simulated RMP: status_period_s = " + FormatNumber(status_period_s) +
+                           " is outside 5..100 ms");
   }
   if (cu_status_every_cycles < 1) return InvalidArgument("simulated RMP: cu_status_every_cycles must be >= 1");
   for (double s : {boot_velocity_scale, boot_accel_scale, boot_turn_scale}) {

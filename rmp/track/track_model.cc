@@ -210,7 +210,7 @@ Result<TrackUpdateStats> TrackModel::Update(const TrackObservation& observation,
     for (const Vec2d& p : observation.pieces[i].points_m) {
       if (!FinitePoint(p)) return InvalidArgument("track update: piece " + std::to_string(i) + " has a non-finite point");
       if (p.norm() > kMaxObservedRangeM) {
-        return InvalidArgument("track update: piece " + std::to_string(i) + " has a point " + std::to_string(p.norm()) +
+        return InvalidArgument("track update: piece " + std::to_string(i) + " has a point " + FormatNumber(p.norm()) +
                                " m from the vehicle (more than 100 m)");
       }
     }

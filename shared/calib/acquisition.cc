@@ -311,7 +311,7 @@ Result<AimLoopResult> AimClosedLoop(const ParamSet& robot, const ParamSet& laser
     }
     IDI_ASSIGN_OR_RETURN(out.reading, correct(error));
   }
-  return NotConverged("closed-loop aiming: the spot is still " + std::to_string(out.last_error_mm) +
+  return NotConverged("closed-loop aiming: the spot is still " + FormatNumber(out.last_error_mm) +
                       " mm from the target after " + std::to_string(o.max_iterations) + " corrections");
 }
 

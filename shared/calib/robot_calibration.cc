@@ -178,9 +178,9 @@ Result<Unknowns> ClosedFormStart(const RobotCalibrationData& d, const RobotCalib
   const double offset = SetTwoOffset(d.method, d.distance_mm);
   Vec3d t = (*p2 - *p1) / offset;
   if (!(t.norm() > 0.1)) {
-    return FailedPrecondition("robot calibration: the two sets aim at points only " +
-                              std::to_string((*p2 - *p1).norm()) + " mm apart, but the known distance is " +
-                              std::to_string(d.distance_mm) + " mm: check --distance-mm and the set column");
+    return FailedPrecondition("robot calibration: the two sets aim at points only " + FormatNumber((*p2 - *p1).norm()) +
+                              " mm apart, but the known distance is " + FormatNumber(d.distance_mm) +
+                              " mm: check --distance-mm and the set column");
   }
   t.normalize();
   Unknowns u;
@@ -318,7 +318,7 @@ Attempt SolveFrom(const Unknowns& start,
   if (!a.summary.usable) {
     a.why = "solver: " + a.summary.message;
   } else if (!(st.rms_miss_mm <= o.max_rms_miss_mm)) {
-    a.why = "the fit misses the point by " + std::to_string(st.rms_miss_mm) + " mm RMS";
+    a.why = "the fit misses the point by " + FormatNumber(st.rms_miss_mm) + " mm RMS";
   } else if (const Status kept = CheckInliers(d, a.active, o); !kept.ok()) {
     a.why = kept.message();  // another start may leave fewer readings out
   } else {
@@ -389,7 +389,7 @@ ParamSet PackRobotCalibration(const ParamSet& robot, const ParamSet& laser, cons
 Status ValidateRobotCalibrationData(const RobotCalibrationData& d, const RobotCalibrationOptions& o) {
   if (!(d.distance_mm > 0) || !std::isfinite(d.distance_mm)) {
     return InvalidArgument("robot calibration: the known distance must be a positive number of mm, got " +
-                           std::to_string(d.distance_mm));
+                           FormatNumber(d.distance_mm));
   }
   IDI_RETURN_IF_ERROR(CheckReadings(d, "robot calibration"));
   std::array<int, 2> per_set{0, 0};

@@ -124,10 +124,10 @@ Status CheckDistortionCoversImage(const CameraModel& camera) {
   for (const double u : {-0.5, camera.width - 0.5}) {
     for (const double v : {-0.5, camera.height - 0.5}) {
       if (!PixelToNormalized(camera, Vec2d(u, v)).allFinite()) {
-        return InvalidArgument("the lens distortion (k1 " + std::to_string(camera.params[kK1]) + ", k2 " +
-                               std::to_string(camera.params[kK2]) + ", k3 " + std::to_string(camera.params[kK3]) +
-                               ") cannot be undistorted at the image corner (" + std::to_string(u) + ", " +
-                               std::to_string(v) +
+        return InvalidArgument("the lens distortion (k1 " + FormatNumber(camera.params[kK1]) + ", k2 " +
+                               FormatNumber(camera.params[kK2]) + ", k3 " + FormatNumber(camera.params[kK3]) +
+                               ") cannot be undistorted at the image corner (" + FormatNumber(u) + ", " +
+                               FormatNumber(v) +
                                "): the model folds back before that radius; less distortion or a longer focal "
                                "length is needed");
       }

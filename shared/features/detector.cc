@@ -23,22 +23,22 @@ constexpr double kDetPi = 3.14159265358979323846;
 
 Status Positive(double v, const char* name) {
   if (!(v > 0) || !std::isfinite(v)) {
-    return InvalidArgument(std::string(name) + " must be positive and finite, got " + std::to_string(v));
+    return InvalidArgument(std::string(name) + " must be positive and finite, got " + FormatNumber(v));
   }
   return Status::Ok();
 }
 
 Status NonNegative(double v, const char* name) {
   if (!(v >= 0) || !std::isfinite(v)) {
-    return InvalidArgument(std::string(name) + " must be >= 0 and finite, got " + std::to_string(v));
+    return InvalidArgument(std::string(name) + " must be >= 0 and finite, got " + FormatNumber(v));
   }
   return Status::Ok();
 }
 
 Status InRange(double v, double lo, double hi, const char* name) {
   if (!(v >= lo && v <= hi)) {
-    return InvalidArgument(std::string(name) + " must be in [" + std::to_string(lo) + ", " + std::to_string(hi) +
-                           "], got " + std::to_string(v));
+    return InvalidArgument(std::string(name) + " must be in [" + FormatNumber(lo) + ", " + FormatNumber(hi) +
+                           "], got " + FormatNumber(v));
   }
   return Status::Ok();
 }

@@ -78,7 +78,7 @@ Status ComputeGradients(const cv::Mat& image, double smoothing_sigma_px, Gradien
     double lo = 0, hi = 0;
     cv::minMaxLoc(image, &lo, &hi);
     if (lo < -kMaxFloatLevel || hi > kMaxFloatLevel) {
-      return InvalidArgument("float image has values up to " + std::to_string(std::max(-lo, hi)) +
+      return InvalidArgument("float image has values up to " + FormatNumber(std::max(-lo, hi)) +
                              "; grey levels beyond +-1e6 are not an image");
     }
   }

@@ -340,7 +340,7 @@ Result<std::vector<GraspPlan>> PlanTopGrasps(const std::vector<Vec3d>& points,
   }
   const double height = z_top - table_z_mm;
   if (height < o.table_clearance_mm + 2.0) {
-    return NotFound("grasp planning: the object is only " + std::to_string(height) + " mm high");
+    return NotFound("grasp planning: the object is only " + FormatNumber(height) + " mm high");
   }
   // Silhouette at grasp height (§8.11: the top layer's outline for a solid object). Without edges: the
   // hull of all points, right for objects with vertical walls and for flat objects. With the model's
@@ -435,7 +435,7 @@ Result<std::vector<GraspPlan>> PlanTopGrasps(const std::vector<Vec3d>& points,
     }
   }
   if (plans.empty()) {
-    return NotFound("grasp planning: no grasp fits the hand with friction " + std::to_string(o.friction) + " (" +
+    return NotFound("grasp planning: no grasp fits the hand with friction " + FormatNumber(o.friction) + " (" +
                     std::to_string(considered) + " candidates considered)");
   }
   // Best first (ties keep the order found: the default contact height first); the same grasp found at

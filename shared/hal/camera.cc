@@ -10,7 +10,7 @@ Status CheckCameraSettings(const CameraSettings& settings, const std::string& wh
                            std::to_string(settings.height) + " is empty");
   }
   if (!std::isfinite(settings.exposure_us) || settings.exposure_us < 0) {
-    return InvalidArgument(where + ": exposure_us " + std::to_string(settings.exposure_us) + " is invalid");
+    return InvalidArgument(where + ": exposure_us " + FormatNumber(settings.exposure_us) + " is invalid");
   }
   if (!std::isfinite(settings.gain_db)) return InvalidArgument(where + ": gain_db is not a finite number");
   return Status::Ok();

@@ -42,8 +42,8 @@ Result<IkSummary> SolveLm(const ResidualFn& residual_of,
     // std::clamp needs lo <= hi: a margin wider than half a joint's range has no configuration inside it.
     if (!(limits.min[i] + options.limit_margin_rad <= limits.max[i] - options.limit_margin_rad)) {
       return InvalidArgument(std::string(what) + ": joint " + std::to_string(i + 1) +
-                             "'s limits leave no room inside the margin of " +
-                             std::to_string(options.limit_margin_rad) + " rad");
+                             "'s limits leave no room inside the margin of " + FormatNumber(options.limit_margin_rad) +
+                             " rad");
     }
   }
   Joints q = ClampToLimits(start, limits, options.limit_margin_rad);
@@ -116,7 +116,7 @@ Result<IkSummary> SolveLm(const ResidualFn& residual_of,
     return NotConverged(std::string(what) +
                         ": the solution found is not acceptable (the target lies behind the laser)");
   }
-  return NotConverged(std::string(what) + ": residual " + std::to_string(summary.residual_mm) + " mm after " +
+  return NotConverged(std::string(what) + ": residual " + FormatNumber(summary.residual_mm) + " mm after " +
                       std::to_string(summary.iterations) +
                       " iterations (target out of reach from this start, or joints at their limits)");
 }

@@ -101,7 +101,7 @@ Result<HistogramBins> Histogram(const std::vector<double>& values, int bins, std
   if (!(b > a)) b = a + std::max(1.0, 1e-9 * std::abs(a));
   // A range whose width overflows (or a non-finite bound) has no bins: the bin index would be NaN.
   if (!std::isfinite(a) || !std::isfinite(b) || !std::isfinite(b - a)) {
-    return InvalidArgument("histogram: the range [" + std::to_string(a) + ", " + std::to_string(b) +
+    return InvalidArgument("histogram: the range [" + FormatNumber(a) + ", " + FormatNumber(b) +
                            "] is not finite or too wide");
   }
   HistogramBins h;

@@ -43,11 +43,10 @@ Status ModelOptions::Check() const {
   }
   if (!(segment_margin_px >= 0) || !std::isfinite(segment_margin_px)) {
     return InvalidArgument("model: segment_margin_px must be a finite 0 px or more, got " +
-                           std::to_string(segment_margin_px));
+                           FormatNumber(segment_margin_px));
   }
   if (!(min_edge_spread_deg >= 0 && min_edge_spread_deg <= 180)) {
-    return InvalidArgument("model: min_edge_spread_deg must be in [0, 180], got " +
-                           std::to_string(min_edge_spread_deg));
+    return InvalidArgument("model: min_edge_spread_deg must be in [0, 180], got " + FormatNumber(min_edge_spread_deg));
   }
   return Status::Ok();
 }

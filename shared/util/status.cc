@@ -1,9 +1,37 @@
 #include "shared/util/status.h"
 
+#include <charconv>
 #include <cstdio>
 #include <cstdlib>
 
 namespace idi {
+
+namespace {
+
+// The shortest decimal that reads back as `v` (std::to_chars picks the shorter of the fixed and the
+// scientific form: "2000", "0.1", "1e-07"), when it has at most `max_digits` significant digits; else
+// `v` to 6 significant digits.
+template <typename T>
+std::string Shortest(T v, int max_digits) {
+  char buf[64];
+  const std::to_chars_result r = std::to_chars(buf, buf + sizeof buf, v);
+  int digits = 0;
+  bool leading = true;
+  for (const char* c = buf; c != r.ptr && *c != 'e'; ++c) {
+    if (*c < '0' || *c > '9') continue;
+    if (leading && *c == '0') continue;
+    leading = false;
+    ++digits;
+  }
+  if (digits <= max_digits) return std::string(buf, r.ptr);
+  const std::to_chars_result g = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::general, 6);
+  return std::string(buf, g.ptr);
+}
+
+}  // namespace
+
+std::string FormatNumber(double v) { return Shortest(v, 12); }
+std::string FormatNumber(float v) { return Shortest(v, 9); }
 
 const char* StatusCodeName(StatusCode code) {
   switch (code) {

@@ -27,6 +27,14 @@ enum class StatusCode {
 
 const char* StatusCodeName(StatusCode code);
 
+// A number as messages should show it: the shortest decimal that reads back as the same value (the
+// shorter of the fixed and the scientific form, as std::to_chars picks it: "0.1", "2000", "1e-07",
+// "1.0000001", "1e+308", "inf", "nan"), which shows a value as it was given; a value that needs more than
+// 12 significant digits (9 for a float), such as a computed residual, to 6 ("0.123457"). std::to_string
+// printed six fixed decimals: a refused 1e-7 read "got 0.000000", and 1e308 took 316 characters.
+std::string FormatNumber(double v);
+std::string FormatNumber(float v);
+
 class [[nodiscard]] Status {
  public:
   Status() = default;

@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+#include <string>
+
 namespace idi {
 namespace {
 
@@ -49,3 +52,28 @@ TEST(StatusDeathTest, ValueOfErrorAborts) {
 
 }  // namespace
 }  // namespace idi
+
+// Messages show a number as it was given (the fewest digits that read back the same, up to 12), or to 6
+// significant digits when it needs more, not std::to_string's six fixed decimals (which showed 1e-7 as
+// 0.000000 and 1e308 as 309 digits).
+TEST(FormatNumberTest, AsGivenOrToSixDigits) {
+  EXPECT_EQ(idi::FormatNumber(0.1), "0.1");
+  EXPECT_EQ(idi::FormatNumber(2.5), "2.5");
+  EXPECT_EQ(idi::FormatNumber(-3.0), "-3");
+  EXPECT_EQ(idi::FormatNumber(1e-7), "1e-07");
+  EXPECT_EQ(idi::FormatNumber(1e308), "1e+308");
+  EXPECT_EQ(idi::FormatNumber(2000.0), "2000");  // not 2e+03
+  EXPECT_EQ(idi::FormatNumber(2500.0), "2500");
+  EXPECT_EQ(idi::FormatNumber(100000.0), "1e+05");  // the shorter form, as std::to_chars picks it
+  EXPECT_EQ(idi::FormatNumber(-0.0), "-0");
+  EXPECT_EQ(idi::FormatNumber(1.0000001), "1.0000001");  // a refused value just above 1 is not shown as 1
+  EXPECT_EQ(idi::FormatNumber(0.1 + 0.2), "0.3");        // 17 digits to read back: six
+  EXPECT_EQ(idi::FormatNumber(3.14159265358979), "3.14159");
+  EXPECT_EQ(idi::FormatNumber(std::numeric_limits<double>::infinity()), "inf");
+  EXPECT_EQ(idi::FormatNumber(-std::numeric_limits<double>::infinity()), "-inf");
+  EXPECT_EQ(idi::FormatNumber(std::numeric_limits<double>::quiet_NaN()), "nan");
+  EXPECT_EQ(idi::FormatNumber(0.1f), "0.1");  // not the double nearest the float, 0.100000001
+  EXPECT_EQ(idi::FormatNumber(1.5e-9f), "1.5e-09");
+  EXPECT_EQ(idi::FormatNumber(4.9406564584124654e-324), "5e-324");  // the smallest denormal
+  EXPECT_EQ(idi::FormatNumber(1234.5678901234567), "1234.57");      // 17 digits: six
+}

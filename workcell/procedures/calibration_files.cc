@@ -285,7 +285,7 @@ Result<calib::ArmModel> LoadRobotCalibration(const std::string& path) {
         return bad("row " + std::to_string(i + 1) + ", column " + std::to_string(j + 1) + " is not a number");
       }
       if (!std::isfinite(v) || std::abs(v) > 1.0 + 1e-6 || (i == j && std::abs(v - 1.0) > 1e-6)) {
-        return bad("row " + std::to_string(i + 1) + ", column " + std::to_string(j + 1) + ": " + std::to_string(v) +
+        return bad("row " + std::to_string(i + 1) + ", column " + std::to_string(j + 1) + ": " + FormatNumber(v) +
                    " is not a correlation (within [-1, 1], 1 on the diagonal)");
       }
       rho(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = v;

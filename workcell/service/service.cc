@@ -182,7 +182,7 @@ idi::Status WorkcellService::StartUp(uint64_t stops_before) {
     why = "no calibration yet";
   } else {
     const double age_days = static_cast<double>(std::time(nullptr) - current->created_unix_s) / 86400.0;
-    if (age_days > options_.calibration_max_age_days) why = "calibration is " + std::to_string(age_days) + " days old";
+    if (age_days > options_.calibration_max_age_days) why = "calibration is " + FormatNumber(age_days) + " days old";
     for (const std::string& item : options_.required_calibration_items) {
       if (current->items.count(item) == 0) why = "calibration lacks " + item;
     }

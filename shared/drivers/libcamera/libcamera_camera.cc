@@ -98,7 +98,7 @@ Status LibcameraCameraOptions::Check() const {
                            " outside 2..32");
   }
   if (!std::isfinite(frame_rate_hz) || frame_rate_hz < 0 || frame_rate_hz > 1000) {
-    return InvalidArgument("libcamera camera " + camera + ": frame_rate_hz " + std::to_string(frame_rate_hz) +
+    return InvalidArgument("libcamera camera " + camera + ": frame_rate_hz " + FormatNumber(frame_rate_hz) +
                            " outside 0..1000");
   }
   return Status::Ok();
@@ -305,7 +305,7 @@ Result<LibcameraCamera::ExposureControls> LibcameraCamera::MakeExposureControls(
     if (limits.min().type() == libcamera::ControlTypeInteger32 &&
         limits.max().type() == libcamera::ControlTypeInteger32 &&
         (us < limits.min().get<int32_t>() || us > limits.max().get<int32_t>())) {
-      return OutOfRange(Where() + ": exposure " + std::to_string(exposure_us) + " us outside the camera's " +
+      return OutOfRange(Where() + ": exposure " + FormatNumber(exposure_us) + " us outside the camera's " +
                         std::to_string(limits.min().get<int32_t>()) + ".." +
                         std::to_string(limits.max().get<int32_t>()) + " us");
     }
@@ -322,9 +322,9 @@ Result<LibcameraCamera::ExposureControls> LibcameraCamera::MakeExposureControls(
     const libcamera::ControlInfo& limits = it->second;
     if (limits.min().type() == libcamera::ControlTypeFloat && limits.max().type() == libcamera::ControlTypeFloat &&
         (gain < limits.min().get<float>() || gain > limits.max().get<float>())) {
-      return OutOfRange(Where() + ": gain " + std::to_string(gain_db) + " dB (x" + std::to_string(gain) +
-                        ") outside the camera's x" + std::to_string(limits.min().get<float>()) + "..x" +
-                        std::to_string(limits.max().get<float>()));
+      return OutOfRange(Where() + ": gain " + FormatNumber(gain_db) + " dB (x" + FormatNumber(gain) +
+                        ") outside the camera's x" + FormatNumber(limits.min().get<float>()) + "..x" +
+                        FormatNumber(limits.max().get<float>()));
     }
     c.analogue_gain = static_cast<float>(gain);
   }
@@ -495,7 +495,7 @@ Status LibcameraCamera::Requeue(libcamera::Request* request) {
 
 Status LibcameraCamera::SetExposure(double exposure_us) {
   if (!std::isfinite(exposure_us) || exposure_us < 0) {
-    return InvalidArgument(Where() + ": exposure " + std::to_string(exposure_us) + " us is invalid");
+    return InvalidArgument(Where() + ": exposure " + FormatNumber(exposure_us) + " us is invalid");
   }
   if (!started_) {
     exposure_us_ = exposure_us;  // applied at Start

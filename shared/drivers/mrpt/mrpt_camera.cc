@@ -213,14 +213,14 @@ Result<hal::Image> MrptCamera::Grab(std::chrono::milliseconds timeout) {
 Status MrptCamera::SetExposure(double exposure_us) {
   if (impl_->open) return FailedPrecondition(options_.name + ": set the exposure before Start");
   if (!std::isfinite(exposure_us) || exposure_us < 0) {
-    return InvalidArgument(options_.name + ": exposure " + std::to_string(exposure_us) + " us is invalid");
+    return InvalidArgument(options_.name + ": exposure " + FormatNumber(exposure_us) + " us is invalid");
   }
   if (exposure_us > 0 && options_.grabber_type != "dc1394") {
     return FailedPrecondition(options_.name + ": exposure control needs the dc1394 grabber");
   }
   // The shutter's 12 bits of 20 us steps.
   if (exposure_us > 0 && (exposure_us < 20.0 || exposure_us > 4095 * 20.0)) {
-    return OutOfRange(options_.name + ": exposure " + std::to_string(exposure_us) +
+    return OutOfRange(options_.name + ": exposure " + FormatNumber(exposure_us) +
                       " us is outside the shutter's 20 .. 81900 us");
   }
   exposure_us_ = exposure_us;

@@ -76,7 +76,7 @@ Status V4l2CameraOptions::Check() const {
                            " outside 2..32");
   }
   if (!std::isfinite(frame_rate_hz) || frame_rate_hz < 0 || frame_rate_hz > 1000) {
-    return InvalidArgument("V4L2 camera " + device + ": frame_rate_hz " + std::to_string(frame_rate_hz) +
+    return InvalidArgument("V4L2 camera " + device + ": frame_rate_hz " + FormatNumber(frame_rate_hz) +
                            " outside 0..1000");
   }
   if (reconnect_interval.count() < 0) return InvalidArgument("V4L2 camera " + device + ": negative reconnect_interval");
@@ -129,7 +129,7 @@ Status V4l2Camera::Start(const hal::CameraSettings& settings) {
   IDI_RETURN_IF_ERROR(options_.Check());
   IDI_RETURN_IF_ERROR(hal::CheckCameraSettings(settings, Where()));
   if (settings.gain_db != 0) {
-    return InvalidArgument(Where() + ": gain_db " + std::to_string(settings.gain_db) +
+    return InvalidArgument(Where() + ": gain_db " + FormatNumber(settings.gain_db) +
                            " cannot be set: V4L2 gain is in device-specific units; leave it 0");
   }
   CloseDevice();
@@ -303,7 +303,7 @@ Status V4l2Camera::ApplyExposure() {
   }
   const double units = *exposure_us_ / 100.0;  // V4L2_CID_EXPOSURE_ABSOLUTE counts 100 µs
   if (units < q.minimum || units > q.maximum) {
-    return OutOfRange(Where() + ": exposure " + std::to_string(*exposure_us_) + " us outside the device's " +
+    return OutOfRange(Where() + ": exposure " + FormatNumber(*exposure_us_) + " us outside the device's " +
                       std::to_string(q.minimum * 100) + ".." + std::to_string(q.maximum * 100) + " us");
   }
   auto_ctrl.value = V4L2_EXPOSURE_MANUAL;
@@ -462,7 +462,7 @@ Result<hal::Image> V4l2Camera::DequeueFrame(std::chrono::steady_clock::time_poin
 
 Status V4l2Camera::SetExposure(double exposure_us) {
   if (!std::isfinite(exposure_us) || exposure_us < 0) {
-    return InvalidArgument(Where() + ": exposure " + std::to_string(exposure_us) + " us is invalid");
+    return InvalidArgument(Where() + ": exposure " + FormatNumber(exposure_us) + " us is invalid");
   }
   const std::optional<double> previous = exposure_us_;
   exposure_us_ = exposure_us;

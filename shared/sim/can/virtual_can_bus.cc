@@ -19,15 +19,14 @@ std::string VcanHexId(uint32_t id) {
 
 Status VirtualCanBusOptions::Check() const {
   if (!(bitrate_bps >= 10'000.0 && bitrate_bps <= 1'000'000.0)) {
-    return InvalidArgument("virtual CAN bus: bitrate_bps " + std::to_string(bitrate_bps) +
+    return InvalidArgument("virtual CAN bus: bitrate_bps " + FormatNumber(bitrate_bps) +
                            " is outside 10 kbit/s .. 1 Mbit/s (classic CAN)");
   }
   if (!(drop_probability >= 0.0 && drop_probability <= 1.0)) {
-    return InvalidArgument("virtual CAN bus: drop_probability " + std::to_string(drop_probability) +
-                           " is not in [0, 1]");
+    return InvalidArgument("virtual CAN bus: drop_probability " + FormatNumber(drop_probability) + " is not in [0, 1]");
   }
   if (!(garbage_probability >= 0.0 && garbage_probability <= 1.0)) {
-    return InvalidArgument("virtual CAN bus: garbage_probability " + std::to_string(garbage_probability) +
+    return InvalidArgument("virtual CAN bus: garbage_probability " + FormatNumber(garbage_probability) +
                            " is not in [0, 1]");
   }
   if (rx_queue_capacity == 0) return InvalidArgument("virtual CAN bus: rx_queue_capacity must be positive");

@@ -67,7 +67,7 @@ class CellTwin::Camera final : public hal::CameraDevice {
   }
   Status SetExposure(double exposure_us) override {
     if (!(exposure_us > 0) || !std::isfinite(exposure_us)) {
-      return InvalidArgument(name() + ": exposure must be positive, got " + std::to_string(exposure_us) + " us");
+      return InvalidArgument(name() + ": exposure must be positive, got " + FormatNumber(exposure_us) + " us");
     }
     exposure_us_ = exposure_us;
     return Status::Ok();
@@ -504,13 +504,13 @@ void CellTwin::Release() {
   const double support = over_table ? table.z() : options_.workcell.floor_height_mm;
   if (lowest < support - options_.collision_tolerance_mm) {
     ++collisions_;
-    Event("collision: " + objects_[static_cast<std::size_t>(i)].name + " released " + std::to_string(support - lowest) +
+    Event("collision: " + objects_[static_cast<std::size_t>(i)].name + " released " + FormatNumber(support - lowest) +
           " mm inside the " + (over_table ? "table" : "floor"));
   }
   pose.translation.z() += support - lowest;
   objects_[static_cast<std::size_t>(i)].world_from_object = pose;
   Event("released " + objects_[static_cast<std::size_t>(i)].name + ", dropped " +
-        std::to_string(std::max(0.0, lowest - support)) + " mm onto the " + (over_table ? "table" : "floor"));
+        FormatNumber(std::max(0.0, lowest - support)) + " mm onto the " + (over_table ? "table" : "floor"));
 }
 
 }  // namespace idi::sim

@@ -280,8 +280,8 @@ GraspJudgement JudgeGrasp(const HandTruth& hand, const std::vector<FingerContact
   }
   j.worst_cone_margin_deg = RadToDeg(cone - worst);
   if (worst > cone) {
-    j.reason = "finger " + std::to_string(worst_finger + 1) + " pushes " + std::to_string(RadToDeg(worst)) +
-               " deg off the contact normal, outside the friction cone (" + std::to_string(RadToDeg(cone)) +
+    j.reason = "finger " + std::to_string(worst_finger + 1) + " pushes " + FormatNumber(RadToDeg(worst)) +
+               " deg off the contact normal, outside the friction cone (" + FormatNumber(RadToDeg(cone)) +
                " deg): it slips";
     return j;
   }
@@ -291,7 +291,7 @@ GraspJudgement JudgeGrasp(const HandTruth& hand, const std::vector<FingerContact
   }
   j.holds = true;
   j.reason = std::to_string(contacts.size()) + " fingers on the object, force closure, friction margin " +
-             std::to_string(j.worst_cone_margin_deg) + " deg";
+             FormatNumber(j.worst_cone_margin_deg) + " deg";
   return j;
 }
 

@@ -18,22 +18,22 @@ Status RenderOptions::Check() const {
   // Bounded so that exposure x radiance stays a float (an infinite pixel plus its shot noise was NaN,
   // which became 0: saturated pixels turned black).
   if (!std::isfinite(exposure_dn) || exposure_dn < 0 || exposure_dn > 1e6) {
-    return InvalidArgument("render exposure_dn must be in [0, 1e6], got " + std::to_string(exposure_dn));
+    return InvalidArgument("render exposure_dn must be in [0, 1e6], got " + FormatNumber(exposure_dn));
   }
   if (!std::isfinite(psf_sigma_px) || psf_sigma_px < 0 || psf_sigma_px > 20) {
-    return InvalidArgument("render psf_sigma_px must be in [0, 20], got " + std::to_string(psf_sigma_px));
+    return InvalidArgument("render psf_sigma_px must be in [0, 20], got " + FormatNumber(psf_sigma_px));
   }
   if (!std::isfinite(vignetting) || vignetting < 0 || vignetting >= 1) {
-    return InvalidArgument("render vignetting must be in [0, 1), got " + std::to_string(vignetting));
+    return InvalidArgument("render vignetting must be in [0, 1), got " + FormatNumber(vignetting));
   }
   if (!(near_clip > 0) || !std::isfinite(near_clip)) {
-    return InvalidArgument("render near_clip must be positive, got " + std::to_string(near_clip));
+    return InvalidArgument("render near_clip must be positive, got " + FormatNumber(near_clip));
   }
   if (!std::isfinite(truth_min_contrast_dn) || truth_min_contrast_dn < 0) {
     return InvalidArgument("render truth_min_contrast_dn must be >= 0");
   }
   if (!std::isfinite(shading_tolerance_dn) || shading_tolerance_dn < 0 || shading_tolerance_dn > 1) {
-    return InvalidArgument("render shading_tolerance_dn must be in [0, 1], got " + std::to_string(shading_tolerance_dn));
+    return InvalidArgument("render shading_tolerance_dn must be in [0, 1], got " + FormatNumber(shading_tolerance_dn));
   }
   if (threads < 0 || threads > 64) return InvalidArgument("render threads must be in 0..64, got " + std::to_string(threads));
   return sensor.Check();

@@ -9,32 +9,32 @@ namespace {
 bool FiniteVec(const Vec3d& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
 
 std::string VecText(const Vec3d& v) {
-  return "[" + std::to_string(v.x()) + ", " + std::to_string(v.y()) + ", " + std::to_string(v.z()) + "]";
+  return "[" + FormatNumber(v.x()) + ", " + FormatNumber(v.y()) + ", " + FormatNumber(v.z()) + "]";
 }
 
 }  // namespace
 
 Status Texture::Check() const {
   if (!std::isfinite(noise_amplitude) || noise_amplitude < 0 || noise_amplitude > 1) {
-    return InvalidArgument("texture noise_amplitude must be in [0, 1], got " + std::to_string(noise_amplitude));
+    return InvalidArgument("texture noise_amplitude must be in [0, 1], got " + FormatNumber(noise_amplitude));
   }
   if (noise_amplitude > 0 && !(noise_scale > 0 && std::isfinite(noise_scale))) {
-    return InvalidArgument("texture noise_scale must be positive, got " + std::to_string(noise_scale));
+    return InvalidArgument("texture noise_scale must be positive, got " + FormatNumber(noise_scale));
   }
   if (noise_octaves < 1 || noise_octaves > 12) {
     return InvalidArgument("texture noise_octaves must be in [1, 12], got " + std::to_string(noise_octaves));
   }
   if (!std::isfinite(tile_size) || tile_size < 0) {
-    return InvalidArgument("texture tile_size must be >= 0, got " + std::to_string(tile_size));
+    return InvalidArgument("texture tile_size must be >= 0, got " + FormatNumber(tile_size));
   }
   if (tile_size > 0 && !(grout_width >= 0 && grout_width < tile_size)) {
-    return InvalidArgument("texture grout_width must be in [0, tile_size), got " + std::to_string(grout_width));
+    return InvalidArgument("texture grout_width must be in [0, tile_size), got " + FormatNumber(grout_width));
   }
   if (!FiniteVec(grout_albedo) || grout_albedo.minCoeff() < 0 || grout_albedo.maxCoeff() > 1) {
     return InvalidArgument("texture grout albedo must be in [0, 1], got " + VecText(grout_albedo));
   }
   if (!std::isfinite(tile_jitter) || tile_jitter < 0 || tile_jitter > 1) {
-    return InvalidArgument("texture tile_jitter must be in [0, 1], got " + std::to_string(tile_jitter));
+    return InvalidArgument("texture tile_jitter must be in [0, 1], got " + FormatNumber(tile_jitter));
   }
   return Status::Ok();
 }
@@ -118,7 +118,7 @@ Status Cylinder::Check() const {
 
 Status Lighting::Check() const {
   if (!std::isfinite(ambient) || ambient < 0) {
-    return InvalidArgument("lighting: ambient must be >= 0, got " + std::to_string(ambient));
+    return InvalidArgument("lighting: ambient must be >= 0, got " + FormatNumber(ambient));
   }
   for (std::size_t i = 0; i < directional.size(); ++i) {
     const auto& d = directional[i];

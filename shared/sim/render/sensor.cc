@@ -201,13 +201,13 @@ int LeadingRun(const float* in, const uint64_t* w, const RunParams& p, uint8_t* 
 
 Status SensorOptions::Check() const {
   if (!std::isfinite(gain_dn_per_electron) || gain_dn_per_electron < 0) {
-    return InvalidArgument("sensor gain_dn_per_electron must be >= 0, got " + std::to_string(gain_dn_per_electron));
+    return InvalidArgument("sensor gain_dn_per_electron must be >= 0, got " + FormatNumber(gain_dn_per_electron));
   }
   if (!std::isfinite(read_noise_dn) || read_noise_dn < 0) {
-    return InvalidArgument("sensor read_noise_dn must be >= 0, got " + std::to_string(read_noise_dn));
+    return InvalidArgument("sensor read_noise_dn must be >= 0, got " + FormatNumber(read_noise_dn));
   }
   if (!std::isfinite(black_level_dn) || black_level_dn < 0 || black_level_dn > 255) {
-    return InvalidArgument("sensor black_level_dn must be in [0, 255], got " + std::to_string(black_level_dn));
+    return InvalidArgument("sensor black_level_dn must be in [0, 255], got " + FormatNumber(black_level_dn));
   }
   return Status::Ok();
 }

@@ -202,6 +202,12 @@ TEST(SensorTest, BadOptionsAreRejected) {
   r = RenderOptions();
   r.sensor.read_noise_dn = -0.1;
   EXPECT_FALSE(r.Check().ok());
+  // The refused value as it was given: a tiny negative one read "got -0.000000", a huge one 300 digits.
+  r = RenderOptions();
+  r.psf_sigma_px = -1e-9;
+  EXPECT_NE(r.Check().message().find("got -1e-09"), std::string::npos) << r.Check().message();
+  r.psf_sigma_px = 1e300;
+  EXPECT_NE(r.Check().message().find("got 1e+300"), std::string::npos) << r.Check().message();
 }
 
 }  // namespace

@@ -176,7 +176,7 @@ Result<Solid> MakeTapeStrip(const std::string& name, const std::vector<Vec2d>& c
     const double l0 = (left[i] - centerline[i]).dot(dir[i]), l1 = (left[i + 1] - centerline[i]).dot(dir[i]);
     const double r0 = (right[i] - centerline[i]).dot(dir[i]), r1 = (right[i + 1] - centerline[i]).dot(dir[i]);
     if (!(l1 - l0 > 1e-9 * len) || !(r1 - r0 > 1e-9 * len)) {
-      return InvalidArgument("tape '" + name + "': segment " + std::to_string(i) + " (length " + std::to_string(len) +
+      return InvalidArgument("tape '" + name + "': segment " + std::to_string(i) + " (length " + FormatNumber(len) +
                              ") is too short for the turns at its ends and the tape width");
     }
     Face f;

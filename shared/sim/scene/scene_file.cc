@@ -454,7 +454,7 @@ Status WorkcellSceneSpec::Check() const {
   }
   const double floor_z = CellTwinOptions::DefaultWorkcell().floor_height_mm;
   if (!(table.top_centre_world.z() > floor_z + table.thickness_mm)) {
-    return InvalidArgument(s + ": table.centre_mm's z must be above the floor (z = " + std::to_string(floor_z) +
+    return InvalidArgument(s + ": table.centre_mm's z must be above the floor (z = " + FormatNumber(floor_z) +
                            " mm) by more than the table's thickness");
   }
   if (clutter < 0 || clutter > 100) return InvalidArgument(s + ": clutter must be in 0..100");
@@ -471,8 +471,8 @@ Status WorkcellSceneSpec::Check() const {
     if (!o.at_mm.allFinite() || !std::isfinite(o.yaw_deg)) return InvalidArgument(where + ": at_mm and yaw_deg must be finite");
     const double reach = o.at_mm.norm() + ObjectFootprintRadius(o.shape);
     if (reach > table.radius_mm) {
-      return InvalidArgument(where + ": does not fit on the table (reaches " + std::to_string(reach) +
-                             " mm from its centre, the table's radius is " + std::to_string(table.radius_mm) + " mm)");
+      return InvalidArgument(where + ": does not fit on the table (reaches " + FormatNumber(reach) +
+                             " mm from its centre, the table's radius is " + FormatNumber(table.radius_mm) + " mm)");
     }
   }
   if (cameras.empty()) return InvalidArgument(s + ": cameras: at least one camera is needed");
@@ -510,8 +510,8 @@ Status WorkcellSceneSpec::Check() const {
       const Vec3d centre = TableObjectPose(table, o) * Vec3d(0, 0, 0.5 * ObjectHeight(o.shape));
       const double depth = (cam_from_world * centre).z();
       if (!(depth > render.near_clip)) {
-        return InvalidArgument(s + ": " + ObjectLabel(j, o.name) + " is behind " + CameraLabel(i, c.name) +
-                               " (depth " + std::to_string(depth) + " mm along its optical axis)");
+        return InvalidArgument(s + ": " + ObjectLabel(j, o.name) + " is behind " + CameraLabel(i, c.name) + " (depth " +
+                               FormatNumber(depth) + " mm along its optical axis)");
       }
     }
   }

@@ -18,14 +18,16 @@ double StepTowards(double value, double goal, double max_step) {
 
 Status CheckPositive(const char* name, double v) {
   if (!(std::isfinite(v) && v > 0.0)) {
-    return InvalidArgument(std::string("vehicle twin: ") + name + " = " + std::to_string(v) + " must be a positive number");
+    return InvalidArgument(std::string("vehicle twin: ") + name + " = " + FormatNumber(v) +
+                           " must be a positive number");
   }
   return Status::Ok();
 }
 
 Status CheckNonNegative(const char* name, double v) {
   if (!(std::isfinite(v) && v >= 0.0)) {
-    return InvalidArgument(std::string("vehicle twin: ") + name + " = " + std::to_string(v) + " must be zero or positive");
+    return InvalidArgument(std::string("vehicle twin: ") + name + " = " + FormatNumber(v) +
+                           " must be zero or positive");
   }
   return Status::Ok();
 }
@@ -55,7 +57,7 @@ Status VehicleTwinOptions::Check() const {
   IDI_RETURN_IF_ERROR(CheckFinite("right_wheel_scale_error", right_wheel_scale_error));
   if (std::abs(left_wheel_scale_error) >= 0.5 || std::abs(right_wheel_scale_error) >= 0.5) {
     return InvalidArgument("vehicle twin: wheel scale errors must be within +-0.5 (got " +
-                           std::to_string(left_wheel_scale_error) + ", " + std::to_string(right_wheel_scale_error) + ")");
+                           FormatNumber(left_wheel_scale_error) + ", " + FormatNumber(right_wheel_scale_error) + ")");
   }
   IDI_RETURN_IF_ERROR(CheckNonNegative("slip_noise_m_per_sqrt_m", slip_noise_m_per_sqrt_m));
   IDI_RETURN_IF_ERROR(CheckNonNegative("wheel_speed_noise_mps", wheel_speed_noise_mps));
@@ -71,7 +73,7 @@ Status VehicleTwinOptions::Check() const {
   IDI_RETURN_IF_ERROR(CheckFinite("start_y_m", start_y_m));
   IDI_RETURN_IF_ERROR(CheckFinite("start_yaw_rad", start_yaw_rad));
   IDI_RETURN_IF_ERROR(CheckPositive("step_s", step_s));
-  if (step_s > 0.02) return InvalidArgument("vehicle twin: step_s = " + std::to_string(step_s) + " is above 0.02 s");
+  if (step_s > 0.02) return InvalidArgument("vehicle twin: step_s = " + FormatNumber(step_s) + " is above 0.02 s");
   return Status::Ok();
 }
 

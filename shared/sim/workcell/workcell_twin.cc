@@ -246,7 +246,7 @@ Status SimArm::MoveJoints(const Joints& q_rad, const hal::MoveOptions& options) 
   const JointLimits limits = Rx130JointLimits();
   if (const int bad = limits.FirstViolation(q_rad); bad >= 0) {
     return OutOfRange(name() + ": joint " + std::to_string(bad + 1) + " command " +
-                      std::to_string(RadToDeg(q_rad[static_cast<std::size_t>(bad)])) + " deg is outside its range");
+                      FormatNumber(RadToDeg(q_rad[static_cast<std::size_t>(bad)])) + " deg is outside its range");
   }
   if (!(options.speed_fraction > 0 && options.speed_fraction <= 1)) {
     return InvalidArgument(name() + ": speed_fraction must be in (0, 1]");
@@ -269,8 +269,8 @@ Result<hal::JointState> SimArm::ReadJoints() {
 
 Status SimRail::MoveTo(double position_mm, const hal::MoveOptions& options) {
   if (!std::isfinite(position_mm) || position_mm < 0 || position_mm > twin_->options_.rail_length_mm) {
-    return OutOfRange("sim rail " + std::to_string(k_ + 1) + ": position " + std::to_string(position_mm) +
-                      " mm is outside [0, " + std::to_string(twin_->options_.rail_length_mm) + "] mm");
+    return OutOfRange("sim rail " + std::to_string(k_ + 1) + ": position " + FormatNumber(position_mm) +
+                      " mm is outside [0, " + FormatNumber(twin_->options_.rail_length_mm) + "] mm");
   }
   // As the arm (and the real controller): a NaN was clamped to NaN and became a NaN sleep.
   if (!(options.speed_fraction > 0 && options.speed_fraction <= 1)) {

@@ -240,8 +240,8 @@ Status BarrettDriver::Close() { return Motion(BarrettCommandText(kBarrettFingers
 
 Status BarrettDriver::SetSpread(double spread_rad) {
   if (!std::isfinite(spread_rad) || spread_rad < 0 || spread_rad > options_.spread_max_rad) {
-    return OutOfRange(options_.name + ": spread " + std::to_string(spread_rad) + " rad is outside [0, " +
-                      std::to_string(options_.spread_max_rad) + "] rad; nothing sent");
+    return OutOfRange(options_.name + ": spread " + FormatNumber(spread_rad) + " rad is outside [0, " +
+                      FormatNumber(options_.spread_max_rad) + "] rad; nothing sent");
   }
   const long counts = std::lround(spread_rad * options_.spread_counts_per_rad);
   return Motion(BarrettCommandText(kBarrettSpread, "M", std::to_string(counts)), "spread");

@@ -130,7 +130,7 @@ TEST_F(BarrettDriverTest, SpreadOutOfRangeIsRefusedBeforeSending) {
   const std::size_t before = emulator_->commands().size();
   const Status s = driver_->SetSpread(4.0);
   EXPECT_EQ(s.code(), StatusCode::kOutOfRange);
-  EXPECT_TRUE(BarrettMessageHas(s, "barrett-hand: spread 4.0")) << s.message();
+  EXPECT_TRUE(BarrettMessageHas(s, "barrett-hand: spread 4 rad")) << s.message();
   EXPECT_EQ(driver_->SetSpread(-0.1).code(), StatusCode::kOutOfRange);
   EXPECT_EQ(driver_->SetSpread(std::nan("")).code(), StatusCode::kOutOfRange);
   EXPECT_EQ(emulator_->commands().size(), before);

@@ -71,8 +71,8 @@ Status SimGripper::Close() {
 
 Status SimGripper::SetSpread(double spread_rad) {
   if (!std::isfinite(spread_rad) || spread_rad < 0 || spread_rad > options_.spread_max_rad) {
-    return OutOfRange(options_.name + ": spread " + std::to_string(spread_rad) + " rad outside [0, " +
-                      std::to_string(options_.spread_max_rad) + "]");
+    return OutOfRange(options_.name + ": spread " + FormatNumber(spread_rad) + " rad outside [0, " +
+                      FormatNumber(options_.spread_max_rad) + "]");
   }
   if (!initialized_) return FailedPrecondition(options_.name + ": spread before Initialize (HI)");
   if (fault_) {

@@ -126,7 +126,7 @@ Status PtuDriver::InitializeOnce() {
   if (!pan_arcsec.ok()) return DeviceError(options_.name + ": " + pan_arcsec.status().message());
   for (const double r : {pan_arcsec.value(), tilt_arcsec}) {
     if (!(r > 0 && r < 3600)) {
-      return DeviceError(options_.name + ": implausible resolution " + std::to_string(r) +
+      return DeviceError(options_.name + ": implausible resolution " + FormatNumber(r) +
                          " arc-seconds per position (PR/TR)");
     }
   }
@@ -364,8 +364,8 @@ Result<hal::PanTiltState> PtuDriver::Read() {
 
 Status PtuDriver::MoveTo(double pan_rad, double tilt_rad, std::chrono::milliseconds timeout) {
   if (!std::isfinite(pan_rad) || !std::isfinite(tilt_rad)) {
-    return InvalidArgument(options_.name + ": MoveTo needs finite angles, got pan " + std::to_string(pan_rad) +
-                           ", tilt " + std::to_string(tilt_rad));
+    return InvalidArgument(options_.name + ": MoveTo needs finite angles, got pan " + FormatNumber(pan_rad) +
+                           ", tilt " + FormatNumber(tilt_rad));
   }
   if (timeout.count() <= 0) {
     return InvalidArgument(options_.name + ": MoveTo timeout must be positive");

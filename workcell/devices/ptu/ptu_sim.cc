@@ -42,11 +42,11 @@ Status SimPanTilt::MoveTo(double pan_rad, double tilt_rad, std::chrono::millisec
   const double pr = PtuArcSecondsToRad(options_.pan_arcsec), tr = PtuArcSecondsToRad(options_.tilt_arcsec);
   const double p = std::round(pan_rad / pr), t = std::round(tilt_rad / tr);
   if (p < options_.pan_min || p > options_.pan_max) {
-    return OutOfRange(options_.name + ": pan " + std::to_string(pan_rad) + " rad (position " + std::to_string(p) +
+    return OutOfRange(options_.name + ": pan " + FormatNumber(pan_rad) + " rad (position " + FormatNumber(p) +
                       ") outside [" + std::to_string(options_.pan_min) + ", " + std::to_string(options_.pan_max) + "]");
   }
   if (t < options_.tilt_min || t > options_.tilt_max) {
-    return OutOfRange(options_.name + ": tilt " + std::to_string(tilt_rad) + " rad (position " + std::to_string(t) +
+    return OutOfRange(options_.name + ": tilt " + FormatNumber(tilt_rad) + " rad (position " + FormatNumber(t) +
                       ") outside [" + std::to_string(options_.tilt_min) + ", " + std::to_string(options_.tilt_max) +
                       "]");
   }

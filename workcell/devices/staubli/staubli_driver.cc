@@ -285,7 +285,7 @@ Status StaubliDriver::StopAfter(Status status) {
 Status StaubliDriver::CheckMoveOptions(const hal::MoveOptions& options) const {
   if (!(options.speed_fraction > 0 && options.speed_fraction <= 1)) {
     return InvalidArgument(options_.name + ": speed_fraction must be in (0, 1], got " +
-                           std::to_string(options.speed_fraction));
+                           FormatNumber(options.speed_fraction));
   }
   if (options.timeout.count() <= 0) return InvalidArgument(options_.name + ": move timeout must be positive");
   return Status::Ok();

@@ -42,7 +42,7 @@ Status SimStaubli::MoveJoints(const Joints& q_rad, const hal::MoveOptions& optio
   const int bad = Rx130JointLimits().FirstViolation(q_rad);
   if (bad >= 0) {
     return OutOfRange(options_.name + ": joint " + std::to_string(bad + 1) + " = " +
-                      std::to_string(RadToDeg(q_rad[static_cast<std::size_t>(bad)])) + " deg outside its limits");
+                      FormatNumber(RadToDeg(q_rad[static_cast<std::size_t>(bad)])) + " deg outside its limits");
   }
   double largest_deg = 0;
   for (std::size_t i = 0; i < q_rad.size(); ++i) largest_deg = std::max(largest_deg, RadToDeg(std::abs(q_rad[i] - q_rad_[i])));
@@ -86,8 +86,8 @@ Status SimStaubli::MoveTo(double position_mm, const hal::MoveOptions& options) {
     return InvalidArgument(options_.name + ": speed_fraction must be in (0, 1]");
   }
   if (!std::isfinite(position_mm) || position_mm < options_.rail_min_mm || position_mm > options_.rail_max_mm) {
-    return OutOfRange(options_.name + ": rail position " + std::to_string(position_mm) + " mm outside [" +
-                      std::to_string(options_.rail_min_mm) + ", " + std::to_string(options_.rail_max_mm) + "]");
+    return OutOfRange(options_.name + ": rail position " + FormatNumber(position_mm) + " mm outside [" +
+                      FormatNumber(options_.rail_min_mm) + ", " + FormatNumber(options_.rail_max_mm) + "]");
   }
   const double duration_s = std::abs(position_mm - rail_mm_) / (options_.rail_speed_mm_per_s * options.speed_fraction);
   const double allowed_s = std::chrono::duration<double>(options.timeout).count();
