@@ -43,7 +43,7 @@ class MapReader {
       if (!std::isfinite(d)) return InvalidArgument(Where(v) + ": " + Key(key) + " is not a finite number");
       if (!(d >= lo && d <= hi)) {
         return InvalidArgument(
-            fmt::format("{}: {} = {:g} must be in [{:g}, {:g}] ({})", Where(v), Key(key), d, lo, hi, why));
+            fmt::format("{}: {} = {} must be in [{:g}, {:g}] ({})", Where(v), Key(key), FormatNumber(d), lo, hi, why));
       }
       *out = d;
       return Status::Ok();

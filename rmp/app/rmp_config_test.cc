@@ -159,6 +159,8 @@ TEST(RmpConfigTest, RefusesFaultValuesTheTwinCannotApplyNamingTheLine) {
            {"sim:\n  faults:\n    covered_m: [[0.3, .inf]]\n", "c.yaml:3: sim.faults.covered_m[0]"},
            {"sim:\n  faults:\n    battery_drop_v: -5\n", "c.yaml:3: sim.faults.battery_drop_v = -5"},
            {"sim:\n  faults:\n    battery_drop_v: 1000\n", "c.yaml:3: sim.faults.battery_drop_v = 1000"},
+           // Just above the bound: shown as given, not rounded onto the bound ("76 must be in [0, 76]").
+           {"sim:\n  faults:\n    battery_drop_v: 76.0000001\n", "c.yaml:3: sim.faults.battery_drop_v = 76.0000001"},
            {"sim:\n  faults:\n    battery_drop_v: .nan\n", "c.yaml:3: sim.faults.battery_drop_v"}}) {
     const auto r = ParseRmpConfig(text, "c.yaml");
     if (r.ok()) {
