@@ -72,10 +72,8 @@ struct PhotometricSolution {
   double rss = 0;
 };
 
-// A pixel's linear regressors and the normal-equation sums they enter, written out coefficient by
-// coefficient (the per-pixel sums are the photometric fit's hot loop). The products and their order
-// are those of the Eigen expressions they replace (x^T l as x0 l0 + x1 l1 [+ x2 l2]; h += x x^T and
-// b += x r coefficient by coefficient), so the sums are the same to the bit.
+// A pixel's linear regressors (Phi, 1[, d]); x^T l as x0 l0 + x1 l1 [+ x2 l2], the order of the Eigen
+// expression it replaced.
 template <int N>
 struct Regressors {
   double v[N];
@@ -85,14 +83,6 @@ struct Regressors {
     return d;
   }
 };
-
-template <int N>
-void AddOuter(const Regressors<N>& x, double r, Eigen::Matrix<double, N, N>* h, Eigen::Matrix<double, N, 1>* b) {
-  for (int j = 0; j < N; ++j) {
-    for (int i = 0; i < N; ++i) (*h)(i, j) += x.v[i] * x.v[j];
-    (*b)(j) += x.v[j] * r;
-  }
-}
 
 template <int N>
 bool SolvePhotometric(
@@ -114,22 +104,42 @@ bool SolvePhotometric(
     return x;
   };
   std::vector<VecN> lin(nc, VecN::Zero());  // (a_k, b_k[, m_k])
-  // The chunks' linear parameters for the starting geometry: N x N linear least squares each.
-  {
-    std::vector<MatN> hh(nc, MatN::Zero());
-    std::vector<VecN> hb(nc, VecN::Zero());
-    for (const EmplPixel& p : px) {
+  // The band's pixels come chunk by chunk (PhotometricRefine numbers the chunks in order): chunk k is
+  // px[first[k], first[k + 1]).
+  std::vector<std::size_t> first(nc + 1, px.size());
+  for (std::size_t i = px.size(); i-- > 0;) {
+    first[static_cast<std::size_t>(px[i].chunk)] = i;
+  }
+  for (std::size_t k = nc; k-- > 0;) {
+    first[k] = std::min(first[k], first[k + 1]);
+  }
+  // The chunks' linear parameters for the starting geometry: N x N linear least squares each, its sums
+  // in locals over the chunk's pixels.
+  for (std::size_t k = 0; k < nc; ++k) {
+    MatN hh = MatN::Zero();
+    VecN hb = VecN::Zero();
+    double h[N][N] = {}, b[N] = {};
+    for (std::size_t i = first[k]; i < first[k + 1]; ++i) {
+      const EmplPixel& p = px[i];
       double cdf, pdf;
       normal.Eval((c0 * p.ux + s0 * p.uy - e) / sigma, &cdf, &pdf);
-      const std::size_t k = static_cast<std::size_t>(p.chunk);
-      AddOuter<N>(regressors(p, cdf), static_cast<double>(p.value), &hh[k], &hb[k]);
-    }
-    for (std::size_t k = 0; k < nc; ++k) {
-      if (!(hh[k].determinant() > 1e-9 * (hh[k].diagonal().prod() + 1e-30))) {
-        return false;
+      const Regressors<N> x = regressors(p, cdf);
+      const double r = static_cast<double>(p.value);
+#pragma GCC unroll 3
+      for (int j = 0; j < N; ++j) {
+#pragma GCC unroll 3
+        for (int q = 0; q < N; ++q) h[q][j] += x.v[q] * x.v[j];
+        b[j] += x.v[j] * r;
       }
-      lin[k] = hh[k].inverse() * hb[k];
     }
+    for (int j = 0; j < N; ++j) {
+      for (int q = 0; q < N; ++q) hh(q, j) = h[q][j];
+      hb(j) = b[j];
+    }
+    if (!(hh.determinant() > 1e-9 * (hh.diagonal().prod() + 1e-30))) {
+      return false;
+    }
+    lin[k] = hh.inverse() * hb;
   }
   // Gauss-Newton on (theta, e, sigma) with each chunk's linear parameters eliminated by the Schur
   // complement. Each pass accumulates the normal equations at the current estimate; a pass that finds a
@@ -151,96 +161,140 @@ bool SolvePhotometric(
   } prev{theta, e, sigma, std::numeric_limits<double>::infinity(), lin, s_mat};
   double outlier_cut = std::numeric_limits<double>::infinity();
   constexpr double kFlatZ = 4.5;  // Phi(4.5) = 1 - 3.4e-6
+  // Each pass first evaluates the model at every pixel it keeps (its regressors, residual and
+  // Jacobian, in columns), then forms the sums column by column with a few accumulators at a time:
+  // summed in one loop, the 21 running sums did not fit the registers and each pixel's additions
+  // waited on the stores of the one before. Every sum still adds its terms in pixel order.
+  thread_local std::vector<double> col_x0, col_x2, col_r, col_j0, col_j1, col_j2;
+  for (std::vector<double>* v : {&col_x0, &col_x2, &col_r, &col_j0, &col_j1, &col_j2}) {
+    v->resize(px.size());
+  }
+  std::vector<std::size_t> kept_end(nc);
   for (int iter = 0; iter < 6; ++iter) {
-    for (ChunkAcc& ck : chunks) {
-      ck = ChunkAcc{};
-    }
-    // The sums are kept in locals while the pixels stay in one chunk (the band's pixels come chunk
-    // by chunk) and written to that chunk's accumulator when the chunk changes: summed in memory,
-    // each pixel's additions waited on the stores of the one before. Symmetric sums are formed once
-    // (x_a x_b is x_b x_a to the bit) and mirrored. The sums and their order are as before.
-    double hgg_s[3][3] = {}, gg_s[3] = {};
-    struct Local {
-      double hcc[N][N] = {}, hcg[N][3] = {}, bc[N] = {}, lin[N] = {};
-    } acc;
-    std::size_t cur = nc;  // no chunk loaded
-    auto flush = [&] {
-      if (cur == nc) return;
-      ChunkAcc& ck = chunks[cur];
-      for (int a = 0; a < N; ++a) {
-        for (int b = a; b < N; ++b) ck.hcc(a, b) = ck.hcc(b, a) = acc.hcc[a][b];
-        for (int b = 0; b < 3; ++b) ck.hcg(a, b) = acc.hcg[a][b];
-        ck.bc(a) = acc.bc[a];
-      }
-    };
     rss = 0;
     const double c = std::cos(theta), s = std::sin(theta), inv_sigma = 1.0 / sigma;
-    for (EmplPixel& p : px) {
-      if (p.weight == 0.0f) {
-        continue;
+    std::size_t n = 0;
+    for (std::size_t k = 0; k < nc; ++k) {
+      const double* l = lin[k].data();
+      for (std::size_t i = first[k]; i < first[k + 1]; ++i) {
+        EmplPixel& p = px[i];
+        if (p.weight == 0.0f) {
+          continue;
+        }
+        const double z = (c * p.ux + s * p.uy - e) * inv_sigma;
+        // The flat image beside the edge (most of a wide band) tells only the chunk's linear
+        // parameters: the step's slope there is below 4e-5 of its peak (its Jacobian is left 0).
+        double cdf, pdf = 0;
+        if (std::fabs(z) > kFlatZ) {
+          cdf = z > 0 ? 1.0 : 0.0;
+        } else {
+          normal.Eval(z, &cdf, &pdf);
+        }
+        const Regressors<N> x = regressors(p, cdf);
+        const double r = p.value - x.Dot(l);
+        if (std::fabs(r) > outlier_cut) {
+          p.weight = 0.0f;  // specks and clutter far off the model
+          continue;
+        }
+        const double ap = l[0] * pdf * inv_sigma;
+        // d model / d(theta, e, sigma); d model / d(linear parameters) = x.
+        col_x0[n] = cdf;
+        if constexpr (N == 3) col_x2[n] = x.v[2];
+        col_r[n] = r;
+        col_j0[n] = ap * (-s * p.ux + c * p.uy);
+        col_j1[n] = -ap;
+        col_j2[n] = -ap * z;
+        ++n;
       }
-      const double z = (c * p.ux + s * p.uy - e) * inv_sigma;
-      const std::size_t k = static_cast<std::size_t>(p.chunk);
-      if (k != cur) {
-        flush();
-        cur = k;
-        const ChunkAcc& ck = chunks[k];
-        for (int a = 0; a < N; ++a) {
-          for (int b = a; b < N; ++b) acc.hcc[a][b] = ck.hcc(a, b);
-          for (int b = 0; b < 3; ++b) acc.hcg[a][b] = ck.hcg(a, b);
-          acc.bc[a] = ck.bc(a);
-          acc.lin[a] = lin[k](a);
+      kept_end[k] = n;
+    }
+    // The chunks' sums: x^T x and x^T r, then x^T J (x = (Phi, 1[, d])).
+    for (std::size_t k = 0, lo = 0; k < nc; lo = kept_end[k], ++k) {
+      const std::size_t hi = kept_end[k];
+      ChunkAcc& ck = chunks[k];
+      double h00 = 0, h01 = 0, h11 = 0, h02 = 0, h12 = 0, h22 = 0, b0 = 0, b1 = 0, b2 = 0;
+      for (std::size_t i = lo; i < hi; ++i) {
+        const double x0 = col_x0[i], r = col_r[i];
+        h00 += x0 * x0;
+        h01 += x0 * 1.0;
+        h11 += 1.0 * 1.0;
+        b0 += x0 * r;
+        b1 += 1.0 * r;
+        if constexpr (N == 3) {
+          const double x2 = col_x2[i];
+          h02 += x0 * x2;
+          h12 += 1.0 * x2;
+          h22 += x2 * x2;
+          b2 += x2 * r;
         }
       }
-      const bool flat = std::fabs(z) > kFlatZ;
-      // The flat image beside the edge (most of a wide band) tells only the chunk's linear
-      // parameters: the step's slope there is below 4e-5 of its peak.
-      double cdf, pdf = 0;
-      if (flat) {
-        cdf = z > 0 ? 1.0 : 0.0;
-      } else {
-        normal.Eval(z, &cdf, &pdf);
-      }
-      const Regressors<N> x = regressors(p, cdf);
-      const double r = p.value - x.Dot(acc.lin);
-      if (std::fabs(r) > outlier_cut) {
-        p.weight = 0.0f;  // specks and clutter far off the model
-        continue;
-      }
-      acc.hcc[0][0] += x.v[0] * x.v[0];
-      acc.hcc[0][1] += x.v[0] * x.v[1];
-      acc.hcc[1][1] += x.v[1] * x.v[1];
+      ck.hcc(0, 0) = h00;
+      ck.hcc(0, 1) = ck.hcc(1, 0) = h01;
+      ck.hcc(1, 1) = h11;
+      ck.bc(0) = b0;
+      ck.bc(1) = b1;
       if constexpr (N == 3) {
-        acc.hcc[0][2] += x.v[0] * x.v[2];
-        acc.hcc[1][2] += x.v[1] * x.v[2];
-        acc.hcc[2][2] += x.v[2] * x.v[2];
+        ck.hcc(0, 2) = ck.hcc(2, 0) = h02;
+        ck.hcc(1, 2) = ck.hcc(2, 1) = h12;
+        ck.hcc(2, 2) = h22;
+        ck.bc(2) = b2;
       }
-#pragma GCC unroll 3
-      for (int a = 0; a < N; ++a) acc.bc[a] += x.v[a] * r;
-      rss += r * r;
-      if (flat) {
-        continue;
+      double g00 = 0, g01 = 0, g02 = 0, g10 = 0, g11 = 0, g12 = 0, g20 = 0, g21 = 0, g22 = 0;
+      for (std::size_t i = lo; i < hi; ++i) {
+        const double x0 = col_x0[i], j0 = col_j0[i], j1 = col_j1[i], j2 = col_j2[i];
+        g00 += x0 * j0;
+        g01 += x0 * j1;
+        g02 += x0 * j2;
+        g10 += 1.0 * j0;
+        g11 += 1.0 * j1;
+        g12 += 1.0 * j2;
+        if constexpr (N == 3) {
+          const double x2 = col_x2[i];
+          g20 += x2 * j0;
+          g21 += x2 * j1;
+          g22 += x2 * j2;
+        }
       }
-      const double ap = acc.lin[0] * pdf * inv_sigma;
-      // d model / d(theta, e, sigma); d model / d(linear parameters) = x.
-      const double j[3] = {ap * (-s * p.ux + c * p.uy), -ap, -ap * z};
-      hgg_s[0][0] += j[0] * j[0];
-      hgg_s[0][1] += j[0] * j[1];
-      hgg_s[0][2] += j[0] * j[2];
-      hgg_s[1][1] += j[1] * j[1];
-      hgg_s[1][2] += j[1] * j[2];
-      hgg_s[2][2] += j[2] * j[2];
-      gg_s[0] += r * j[0];
-      gg_s[1] += r * j[1];
-      gg_s[2] += r * j[2];
-#pragma GCC unroll 3
-      for (int a = 0; a < N; ++a) {
-        acc.hcg[a][0] += x.v[a] * j[0];
-        acc.hcg[a][1] += x.v[a] * j[1];
-        acc.hcg[a][2] += x.v[a] * j[2];
+      ck.hcg(0, 0) = g00;
+      ck.hcg(0, 1) = g01;
+      ck.hcg(0, 2) = g02;
+      ck.hcg(1, 0) = g10;
+      ck.hcg(1, 1) = g11;
+      ck.hcg(1, 2) = g12;
+      if constexpr (N == 3) {
+        ck.hcg(2, 0) = g20;
+        ck.hcg(2, 1) = g21;
+        ck.hcg(2, 2) = g22;
       }
     }
-    flush();
+    // The geometry's sums J^T J and J^T r, and the residual, over all pixels in order.
+    double hgg_s[3][3] = {}, gg_s[3] = {};
+    {
+      double q00 = 0, q01 = 0, q02 = 0, q11 = 0, q12 = 0, q22 = 0, r0 = 0, r1 = 0, r2 = 0, rr = 0;
+      for (std::size_t i = 0; i < n; ++i) {
+        const double r = col_r[i], j0 = col_j0[i], j1 = col_j1[i], j2 = col_j2[i];
+        rr += r * r;
+        q00 += j0 * j0;
+        q01 += j0 * j1;
+        q02 += j0 * j2;
+        q11 += j1 * j1;
+        q12 += j1 * j2;
+        q22 += j2 * j2;
+        r0 += r * j0;
+        r1 += r * j1;
+        r2 += r * j2;
+      }
+      rss = rr;
+      hgg_s[0][0] = q00;
+      hgg_s[0][1] = q01;
+      hgg_s[0][2] = q02;
+      hgg_s[1][1] = q11;
+      hgg_s[1][2] = q12;
+      hgg_s[2][2] = q22;
+      gg_s[0] = r0;
+      gg_s[1] = r1;
+      gg_s[2] = r2;
+    }
     Eigen::Matrix3d hgg;
     Eigen::Vector3d gg;
     for (int a = 0; a < 3; ++a) {
