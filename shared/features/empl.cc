@@ -113,16 +113,39 @@ bool SolvePhotometric(
   for (std::size_t k = nc; k-- > 0;) {
     first[k] = std::min(first[k], first[k + 1]);
   }
+  constexpr double kFlatZ = 4.5;  // Phi(4.5) = 1 - 3.4e-6
+  // The step's profile at a pixel: Phi(z) and phi(z). The flat image beside the edge (most of a wide
+  // band) tells only the chunk's linear parameters: the step's slope there is below 4e-5 of its peak,
+  // and its Jacobian is left 0.
+  const auto profile = [&normal](double z, double* cdf, double* pdf) {
+    if (std::fabs(z) > kFlatZ) {
+      *cdf = z > 0 ? 1.0 : 0.0;
+      *pdf = 0;
+    } else {
+      normal.Eval(z, cdf, pdf);
+    }
+  };
+  // The starting geometry's profile, kept for the first Gauss-Newton pass (which evaluates the model at
+  // the same geometry).
+  thread_local std::vector<double> start_z, start_cdf, start_pdf;
+  start_z.resize(px.size());
+  start_cdf.resize(px.size());
+  start_pdf.resize(px.size());
   // The chunks' linear parameters for the starting geometry: N x N linear least squares each, its sums
   // in locals over the chunk's pixels.
+  const double inv_sigma0 = 1.0 / sigma;
   for (std::size_t k = 0; k < nc; ++k) {
     MatN hh = MatN::Zero();
     VecN hb = VecN::Zero();
     double h[N][N] = {}, b[N] = {};
     for (std::size_t i = first[k]; i < first[k + 1]; ++i) {
       const EmplPixel& p = px[i];
+      const double z = (c0 * p.ux + s0 * p.uy - e) * inv_sigma0;
       double cdf, pdf;
-      normal.Eval((c0 * p.ux + s0 * p.uy - e) / sigma, &cdf, &pdf);
+      profile(z, &cdf, &pdf);
+      start_z[i] = z;
+      start_cdf[i] = cdf;
+      start_pdf[i] = pdf;
       const Regressors<N> x = regressors(p, cdf);
       const double r = static_cast<double>(p.value);
 #pragma GCC unroll 3
@@ -160,7 +183,6 @@ bool SolvePhotometric(
     Eigen::Matrix3d s;
   } prev{theta, e, sigma, std::numeric_limits<double>::infinity(), lin, s_mat};
   double outlier_cut = std::numeric_limits<double>::infinity();
-  constexpr double kFlatZ = 4.5;  // Phi(4.5) = 1 - 3.4e-6
   // Each pass first evaluates the model at every pixel it keeps (its regressors, residual and
   // Jacobian, in columns), then forms the sums column by column with a few accumulators at a time:
   // summed in one loop, the 21 running sums did not fit the registers and each pixel's additions
@@ -181,14 +203,14 @@ bool SolvePhotometric(
         if (p.weight == 0.0f) {
           continue;
         }
-        const double z = (c * p.ux + s * p.uy - e) * inv_sigma;
-        // The flat image beside the edge (most of a wide band) tells only the chunk's linear
-        // parameters: the step's slope there is below 4e-5 of its peak (its Jacobian is left 0).
-        double cdf, pdf = 0;
-        if (std::fabs(z) > kFlatZ) {
-          cdf = z > 0 ? 1.0 : 0.0;
+        double z, cdf, pdf;
+        if (iter == 0) {
+          z = start_z[i];
+          cdf = start_cdf[i];
+          pdf = start_pdf[i];
         } else {
-          normal.Eval(z, &cdf, &pdf);
+          z = (c * p.ux + s * p.uy - e) * inv_sigma;
+          profile(z, &cdf, &pdf);
         }
         const Regressors<N> x = regressors(p, cdf);
         const double r = p.value - x.Dot(l);
