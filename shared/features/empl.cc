@@ -193,7 +193,6 @@ bool SolvePhotometric(
   }
   std::vector<std::size_t> kept_end(nc);
   for (int iter = 0; iter < 6; ++iter) {
-    rss = 0;
     const double c = std::cos(theta), s = std::sin(theta), inv_sigma = 1.0 / sigma;
     std::size_t n = 0;
     for (std::size_t k = 0; k < nc; ++k) {
@@ -230,7 +229,7 @@ bool SolvePhotometric(
       }
       kept_end[k] = n;
     }
-    // The chunks' sums: x^T x and x^T r, then x^T J (x = (Phi, 1[, d])).
+    // The chunks' sums: x^T x and x^T r, then x^T J (x = (Phi, 1[, d]); a product with its 1 is exact).
     for (std::size_t k = 0, lo = 0; k < nc; lo = kept_end[k], ++k) {
       const std::size_t hi = kept_end[k];
       ChunkAcc& ck = chunks[k];
@@ -238,14 +237,14 @@ bool SolvePhotometric(
       for (std::size_t i = lo; i < hi; ++i) {
         const double x0 = col_x0[i], r = col_r[i];
         h00 += x0 * x0;
-        h01 += x0 * 1.0;
-        h11 += 1.0 * 1.0;
+        h01 += x0;
+        h11 += 1.0;
         b0 += x0 * r;
-        b1 += 1.0 * r;
+        b1 += r;
         if constexpr (N == 3) {
           const double x2 = col_x2[i];
           h02 += x0 * x2;
-          h12 += 1.0 * x2;
+          h12 += x2;
           h22 += x2 * x2;
           b2 += x2 * r;
         }
@@ -267,9 +266,9 @@ bool SolvePhotometric(
         g00 += x0 * j0;
         g01 += x0 * j1;
         g02 += x0 * j2;
-        g10 += 1.0 * j0;
-        g11 += 1.0 * j1;
-        g12 += 1.0 * j2;
+        g10 += j0;
+        g11 += j1;
+        g12 += j2;
         if constexpr (N == 3) {
           const double x2 = col_x2[i];
           g20 += x2 * j0;
@@ -290,39 +289,24 @@ bool SolvePhotometric(
       }
     }
     // The geometry's sums J^T J and J^T r, and the residual, over all pixels in order.
-    double hgg_s[3][3] = {}, gg_s[3] = {};
-    {
-      double q00 = 0, q01 = 0, q02 = 0, q11 = 0, q12 = 0, q22 = 0, r0 = 0, r1 = 0, r2 = 0, rr = 0;
-      for (std::size_t i = 0; i < n; ++i) {
-        const double r = col_r[i], j0 = col_j0[i], j1 = col_j1[i], j2 = col_j2[i];
-        rr += r * r;
-        q00 += j0 * j0;
-        q01 += j0 * j1;
-        q02 += j0 * j2;
-        q11 += j1 * j1;
-        q12 += j1 * j2;
-        q22 += j2 * j2;
-        r0 += r * j0;
-        r1 += r * j1;
-        r2 += r * j2;
-      }
-      rss = rr;
-      hgg_s[0][0] = q00;
-      hgg_s[0][1] = q01;
-      hgg_s[0][2] = q02;
-      hgg_s[1][1] = q11;
-      hgg_s[1][2] = q12;
-      hgg_s[2][2] = q22;
-      gg_s[0] = r0;
-      gg_s[1] = r1;
-      gg_s[2] = r2;
+    double q00 = 0, q01 = 0, q02 = 0, q11 = 0, q12 = 0, q22 = 0, r0 = 0, r1 = 0, r2 = 0, rr = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double r = col_r[i], j0 = col_j0[i], j1 = col_j1[i], j2 = col_j2[i];
+      rr += r * r;
+      q00 += j0 * j0;
+      q01 += j0 * j1;
+      q02 += j0 * j2;
+      q11 += j1 * j1;
+      q12 += j1 * j2;
+      q22 += j2 * j2;
+      r0 += r * j0;
+      r1 += r * j1;
+      r2 += r * j2;
     }
+    rss = rr;
     Eigen::Matrix3d hgg;
-    Eigen::Vector3d gg;
-    for (int a = 0; a < 3; ++a) {
-      for (int b = a; b < 3; ++b) hgg(a, b) = hgg(b, a) = hgg_s[a][b];
-      gg(a) = gg_s[a];
-    }
+    hgg << q00, q01, q02, q01, q11, q12, q02, q12, q22;
+    const Eigen::Vector3d gg(r0, r1, r2);
     if (rss > prev.rss * (1.0 + 1e-9)) {
       std::tie(theta, e, sigma, rss, lin, s_mat) = std::tie(prev.theta, prev.e, prev.sigma, prev.rss, prev.lin, prev.s);
       break;
