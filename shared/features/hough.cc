@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <opencv2/core/hal/intrin.hpp>
 
@@ -92,6 +93,13 @@ void HoughLineFinder::Walk(const GradientImages& g, const EdgeMap& edges, const 
   // steps themselves are the same as without the skip, so are the hits.
   constexpr int kChunk = 8;
   const int margin = reach + 2;
+  // Without distortion the walk's major coordinate (x of a horizontal walk) never decreases and
+  // advances by at least 0.7 px a step, so a pixel can only be tested again at the very next step:
+  // that step's band is masked off where it overlaps the last one, instead of marking every tested
+  // pixel in the visit image (a cache miss per candidate on a cluttered frame). A distorted line may
+  // bend back across columns: there the visit image stays.
+  const bool ident = geometry.identity();
+  int last_major = std::numeric_limits<int>::min(), last_minor = 0;
   double t = t_min;
   while (t <= t_max) {
     const Vec2d qa = geometry.ToPixel(foot + t * dir);
@@ -123,15 +131,28 @@ void HoughLineFinder::Walk(const GradientImages& g, const EdgeMap& edges, const 
           if (px >= 0 && py >= 0 && px < w && py < h && edges.mask.at<std::uint8_t>(py, px) == 1) candidates |= 1u << i;
         }
       }
+      if (ident) {
+        const int major = horizontal ? qx : qy, minor = horizontal ? qy : qx;
+        if (major == last_major) {
+          // Bit i is the pixel at minor - reach + i; the last step tested last_minor +- reach.
+          const int shift = minor - last_minor;
+          const int lo = std::max(0, -shift), hi = std::min(2 * reach, 2 * reach - shift);
+          if (lo <= hi) candidates &= ~(((2u << hi) - 1u) & ~((1u << lo) - 1u));
+        }
+        last_major = major;
+        last_minor = minor;
+      }
       while (candidates != 0) {
         const int i = std::countr_zero(candidates);
         candidates &= candidates - 1;
         const int px = horizontal ? qx : bx0 + i, py = horizontal ? by0 + i : qy;
-        int& visit = visit_.at<int>(py, px);
-        if (visit == walk_id_) {
-          continue;
+        if (!ident) {
+          int& visit = visit_.at<int>(py, px);
+          if (visit == walk_id_) {
+            continue;
+          }
+          visit = walk_id_;
         }
-        visit = walk_id_;
         const Vec2d u = geometry.ToFit(px, py);
         if (std::fabs(normal.dot(u) - offset) > options_.band_px) {
           continue;
