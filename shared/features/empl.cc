@@ -516,7 +516,10 @@ void EmplFitter::Scan(const Vec2d& normal, double offset, double t_lo, double t_
       const int py = horizontal ? base + k : major;
       const float gxv = g_.gx.at<float>(py, px), gyv = g_.gy.at<float>(py, px);
       const double v = gxv * n_px.x() + gyv * n_px.y();
-      const double m = std::sqrt(static_cast<double>(g_.mag2.at<float>(py, px)));
+      // gx^2 + gy^2 in float as the gradient stage forms mag2 (the same value), from the two loads
+      // already made: a third image's column was a third of the scan's cache misses.
+      const float m2 = gxv * gxv + gyv * gyv;
+      const double m = std::sqrt(static_cast<double>(m2));
       const std::size_t i = static_cast<std::size_t>(k + delta + 1);
       gn[i] = v;
       gm[i] = m;
