@@ -742,7 +742,23 @@ void PrintCornerDetails(const sim::GroundTruth& truth,
     double bd = 2.0;
     for (const IdiPoint& p : r.points) bd = std::min(bd, (p.xy - t).norm());
     if (bd < 2.0) continue;
-    std::printf("  missed %s corner of %s at %.1f,%.1f; lines:", j.type.c_str(), j.object.c_str(), t.x(), t.y());
+    // The widest angle between two of its counted lines (under test::kNearlyCollinearDeg: a slight bend).
+    double widest_cos = 1;
+    for (int a : j.lines) {
+      for (int b : j.lines) {
+        const auto ia = lines.find(a), ib = lines.find(b);
+        if (ia == lines.end() || ib == lines.end() || !test::CountsForCorners(*ia->second) ||
+            !test::CountsForCorners(*ib->second))
+          continue;
+        widest_cos = std::min(widest_cos, std::fabs(ia->second->normal.dot(ib->second->normal)));
+      }
+    }
+    std::printf("  missed %s corner of %s at %.1f,%.1f (lines up to %.0f deg apart); lines:",
+                j.type.c_str(),
+                j.object.c_str(),
+                t.x(),
+                t.y(),
+                std::acos(std::min(1.0, widest_cos)) * 180 / 3.14159265358979323846);
     std::vector<const EmplLine*> matched;
     for (int id : j.lines) {
       auto it = lines.find(id);
