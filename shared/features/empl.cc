@@ -516,8 +516,9 @@ void EmplFitter::Scan(const Vec2d& normal, double offset, double t_lo, double t_
       const int py = horizontal ? base + k : major;
       const float gxv = g_.gx.at<float>(py, px), gyv = g_.gy.at<float>(py, px);
       const double v = gxv * n_px.x() + gyv * n_px.y();
-      // gx^2 + gy^2 in float as the gradient stage forms mag2 (the same value), from the two loads
-      // already made: a third image's column was a third of the scan's cache misses.
+      // gx^2 + gy^2 in float as the gradient stage forms mag2 (the same value where neither is fused
+      // into a multiply-add, as on x86-64; on arm64 the last bit may differ), from the two loads already
+      // made: a third image's column was a third of the scan's cache misses.
       const float m2 = gxv * gxv + gyv * gyv;
       const double m = std::sqrt(static_cast<double>(m2));
       const std::size_t i = static_cast<std::size_t>(k + delta + 1);

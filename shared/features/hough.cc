@@ -86,19 +86,19 @@ void HoughLineFinder::Walk(const GradientImages& g, const EdgeMap& edges, const 
   const Vec2d dir = LineDirection(normal);
   const Vec2d foot = normal * offset;
   const bool horizontal = std::fabs(dir.x()) >= std::fabs(dir.y());
-  const double step = geometry.identity() ? 1.0 : 0.8;
+  const bool ident = geometry.identity();
+  const double step = ident ? 1.0 : 0.8;
   const int reach = static_cast<int>(std::ceil(options_.band_px));
   // The line is walked in chunks of kChunk steps; a chunk whose band (with a margin for rounding and
   // for the bend of a distorted line over a few pixels) lies in empty blocks is stepped over. The
   // steps themselves are the same as without the skip, so are the hits.
   constexpr int kChunk = 8;
   const int margin = reach + 2;
-  // Without distortion the walk's major coordinate (x of a horizontal walk) never decreases and
-  // advances by at least 0.7 px a step, so a pixel can only be tested again at the very next step:
-  // that step's band is masked off where it overlaps the last one, instead of marking every tested
-  // pixel in the visit image (a cache miss per candidate on a cluttered frame). A distorted line may
-  // bend back across columns: there the visit image stays.
-  const bool ident = geometry.identity();
+  // Without distortion the walk's major coordinate (x of a horizontal walk) moves one way only, by at
+  // least 0.7 px a step, so a pixel can only be tested again at the very next step: that step's band
+  // is masked off where it overlaps the last one, instead of marking every tested pixel in the visit
+  // image (a cache miss per candidate on a cluttered frame). A distorted line may bend back across
+  // columns: there the visit image stays.
   int last_major = std::numeric_limits<int>::min(), last_minor = 0;
   double t = t_min;
   while (t <= t_max) {

@@ -753,12 +753,12 @@ void PrintCornerDetails(const sim::GroundTruth& truth,
         widest_cos = std::min(widest_cos, std::fabs(ia->second->normal.dot(ib->second->normal)));
       }
     }
-    std::printf("  missed %s corner of %s at %.1f,%.1f (lines up to %.0f deg apart); lines:",
+    std::printf("  missed %s corner of %s at %.1f,%.1f (lines up to %.1f deg apart); lines:",
                 j.type.c_str(),
                 j.object.c_str(),
                 t.x(),
                 t.y(),
-                std::acos(std::min(1.0, widest_cos)) * 180 / 3.14159265358979323846);
+                std::acos(std::min(1.0, widest_cos)) * 180 / kPi);
     std::vector<const EmplLine*> matched;
     for (int id : j.lines) {
       auto it = lines.find(id);
