@@ -732,33 +732,19 @@ void PrintCornerDetails(const sim::GroundTruth& truth,
   for (const sim::TruthJunction& j : truth.junctions) all_junctions.push_back(to_fit(j.xy_px));
   for (const sim::TruthJunction& j : truth.junctions) {
     if (!j.is_vertex || j.type == "tangent") continue;
-    int good = 0;
-    for (int id : j.lines) {
-      auto it = lines.find(id);
-      if (it != lines.end() && test::CountsForCorners(*it->second)) ++good;
-    }
-    if (good < 2) continue;
+    const std::vector<const sim::TruthLine*> counted = test::CountedLines(j, lines);
+    if (counted.size() < 2) continue;
     const Vec2d t = to_fit(j.xy_px);
     double bd = 2.0;
     for (const IdiPoint& p : r.points) bd = std::min(bd, (p.xy - t).norm());
     if (bd < 2.0) continue;
     // The widest angle between two of its counted lines (under test::kNearlyCollinearDeg: a slight bend).
-    double widest_cos = 1;
-    for (int a : j.lines) {
-      for (int b : j.lines) {
-        const auto ia = lines.find(a), ib = lines.find(b);
-        if (ia == lines.end() || ib == lines.end() || !test::CountsForCorners(*ia->second) ||
-            !test::CountsForCorners(*ib->second))
-          continue;
-        widest_cos = std::min(widest_cos, std::fabs(ia->second->normal.dot(ib->second->normal)));
-      }
-    }
     std::printf("  missed %s corner of %s at %.1f,%.1f (lines up to %.1f deg apart); lines:",
                 j.type.c_str(),
                 j.object.c_str(),
                 t.x(),
                 t.y(),
-                std::acos(std::min(1.0, widest_cos)) * 180 / kPi);
+                std::acos(std::min(1.0, test::WidestCos(counted))) * 180 / kPi);
     std::vector<const EmplLine*> matched;
     for (int id : j.lines) {
       auto it = lines.find(id);

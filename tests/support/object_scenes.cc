@@ -113,6 +113,24 @@ void CornerScore::Add(const CornerScore& o) {
 
 bool CountsForCorners(const sim::TruthLine& line) { return line.length_px >= 20 && std::fabs(line.contrast_dn) >= 10; }
 
+std::vector<const sim::TruthLine*> CountedLines(const sim::TruthJunction& j,
+                                                const std::map<int, const sim::TruthLine*>& lines) {
+  std::vector<const sim::TruthLine*> counted;
+  for (int id : j.lines) {
+    const auto it = lines.find(id);
+    if (it != lines.end() && CountsForCorners(*it->second)) counted.push_back(it->second);
+  }
+  return counted;
+}
+
+double WidestCos(const std::vector<const sim::TruthLine*>& counted) {
+  double widest_cos = 1;
+  for (const sim::TruthLine* a : counted) {
+    for (const sim::TruthLine* b : counted) widest_cos = std::min(widest_cos, std::fabs(a->normal.dot(b->normal)));
+  }
+  return widest_cos;
+}
+
 const EmplLine* MatchTruthLine(const FeatureResult& result, const Vec2d& normal, const Vec2d& a, const Vec2d& b) {
   const Vec2d mid = 0.5 * (a + b);
   const EmplLine* best = nullptr;
@@ -137,19 +155,10 @@ CornerScore ScoreCorners(const sim::GroundTruth& truth,
   for (const sim::TruthJunction& j : truth.junctions) {
     if (!j.is_vertex || j.type == "tangent") continue;
     // Its lines that count for a corner (visible and contrasted enough).
-    std::vector<const sim::TruthLine*> counted;
-    for (int id : j.lines) {
-      const auto it = lines.find(id);
-      if (it != lines.end() && CountsForCorners(*it->second)) counted.push_back(it->second);
-    }
+    const std::vector<const sim::TruthLine*> counted = CountedLines(j, lines);
     if (counted.size() < 2) continue;
     ++s.total;
-    // The widest angle between two of them.
-    double widest_cos = 1;
-    for (const sim::TruthLine* a : counted) {
-      for (const sim::TruthLine* b : counted) widest_cos = std::min(widest_cos, std::fabs(a->normal.dot(b->normal)));
-    }
-    const bool nearly_collinear = widest_cos > std::cos(kNearlyCollinearDeg * kPi / 180);
+    const bool nearly_collinear = WidestCos(counted) > std::cos(kNearlyCollinearDeg * kPi / 180);
     s.nearly_collinear += nearly_collinear ? 1 : 0;
     const Vec2d t = to_fit(j.xy_px);
     double bd = 2.0;

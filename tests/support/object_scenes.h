@@ -4,6 +4,7 @@
 #pragma once
 
 #include <functional>
+#include <map>
 #include <random>
 #include <vector>
 
@@ -46,6 +47,11 @@ inline constexpr double kNearlyCollinearDeg = 10.0;
 
 // Whether a true line counts for a corner (visible over >= 20 px with >= 10 DN contrast).
 bool CountsForCorners(const sim::TruthLine& line);
+// The lines of junction `j` that count for a corner, looked up by id in `lines` (the truth's lines).
+std::vector<const sim::TruthLine*> CountedLines(const sim::TruthJunction& j,
+                                                const std::map<int, const sim::TruthLine*>& lines);
+// The cosine of the widest angle between two of `counted` (in the image; 1 for fewer than two).
+double WidestCos(const std::vector<const sim::TruthLine*>& counted);
 // The detected line that explains a true one (within 2 deg, and 2 px at the true segment's middle), if any.
 const EmplLine* MatchTruthLine(const FeatureResult& result, const Vec2d& normal, const Vec2d& a, const Vec2d& b);
 
