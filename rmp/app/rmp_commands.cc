@@ -5,11 +5,8 @@
 #include <sys/stat.h>
 
 #include <algorithm>
-#include <array>
-#include <atomic>
 #include <cerrno>
 #include <chrono>
-#include <csignal>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
@@ -21,37 +18,12 @@
 #include "rmp/app/hardware_run.h"
 #include "rmp/app/replay_run.h"
 #include "rmp/app/sim_run.h"
+#include "shared/runtime/stop_signals.h"
 #include "shared/runtime/systemd_notify.h"
 #include "shared/util/atomic_file.h"
 
 namespace idi::rmp {
 namespace {
-
-std::atomic<bool> g_stop{false};
-
-extern "C" void RmpOnSignal(int /*sig*/) { g_stop.store(true); }
-
-// SIGINT, SIGTERM and SIGHUP set g_stop while a command runs; the handlers before it are restored when
-// it returns (the command may run inside a longer-lived process, a test's).
-class StopOnSignals {
- public:
-  StopOnSignals() {
-    g_stop.store(false);
-    struct sigaction sa {};
-    sa.sa_handler = RmpOnSignal;
-    sigemptyset(&sa.sa_mask);
-    for (std::size_t i = 0; i < kSignals.size(); ++i) sigaction(kSignals[i], &sa, &previous_[i]);
-  }
-  ~StopOnSignals() {
-    for (std::size_t i = 0; i < kSignals.size(); ++i) sigaction(kSignals[i], &previous_[i], nullptr);
-  }
-  StopOnSignals(const StopOnSignals&) = delete;
-  StopOnSignals& operator=(const StopOnSignals&) = delete;
-
- private:
-  static constexpr std::array<int, 3> kSignals = {SIGINT, SIGTERM, SIGHUP};
-  std::array<struct sigaction, 3> previous_{};
-};
 
 void PrintReport(const RunReport& r, bool json) {
   if (json) {
@@ -263,8 +235,8 @@ Status RunSimCli(const SimCli& o) {
   so.png = o.png;
   if (o.max_time_given) so.max_time_s = o.max_time_s;
   so.real_time = o.real_time || so.config.sim_real_time;
-  const StopOnSignals signals;
-  so.stop = &g_stop;
+  const StopSignals signals;
+  so.stop = signals.flag();
   IDI_ASSIGN_OR_RETURN(const SimRunResult res, RunSimulation(so));
   // The summary even when an output failed: the run itself is not lost with it.
   Status written = res.output_status;
@@ -274,7 +246,7 @@ Status RunSimCli(const SimCli& o) {
   }
   PrintReport(res.report, o.json);
   IDI_RETURN_IF_ERROR(written);
-  if (g_stop.load()) return Cancelled("sim: stopped by a signal (zero commanded)");
+  if (signals.requested()) return Cancelled("sim: stopped by a signal (zero commanded)");
   return Status::Ok();
 }
 
@@ -352,7 +324,7 @@ Status RunService(const RunCli& o) {
   RecordFolder record_folder;
   IDI_RETURN_IF_ERROR(RunRecordFolder(o, config, &record_folder));
   const std::string& record = record_folder.path;
-  const StopOnSignals signals;
+  const StopSignals signals;
   spdlog::info("idi-rmp run: backend {} ({})", BackendName(config.backend), o.config);
   RunReport report;
   switch (config.backend) {
@@ -365,7 +337,7 @@ Status RunService(const RunCli& o) {
       if (so.track.speed_mps == 0) so.track.speed_mps = config.planner.cruise_speed_mps;
       so.record_dir = record;
       so.real_time = config.sim_real_time;
-      so.stop = &g_stop;
+      so.stop = signals.flag();
       NotifyReady();
       auto res = RunSimulation(so);
       NotifyStopping();
@@ -381,7 +353,7 @@ Status RunService(const RunCli& o) {
       if (config.replay_dir.empty()) return InvalidArgument(o.config + ": backend replay needs replay.dir");
       ReplayOptions ro;
       ro.dir = config.replay_dir;
-      ro.stop = &g_stop;  // the service's stop (SIGTERM from systemd): zero and end, like the sim backend
+      ro.stop = signals.flag();  // the service's stop (SIGTERM from systemd): zero and end, like the sim backend
       NotifyReady();
       auto res = RunReplay(ro);
       NotifyStopping();
@@ -394,7 +366,7 @@ Status RunService(const RunCli& o) {
       ho.config = config;
       ho.config_text = config_text;
       ho.record_dir = record;
-      ho.stop = &g_stop;
+      ho.stop = signals.flag();
       IDI_ASSIGN_OR_RETURN(report, RunHardware(ho));
       break;
     }
@@ -436,12 +408,12 @@ void AddReplayCommand(CliApp& cli) {
                      [o, json] {
                        IDI_ASSIGN_OR_RETURN(const replay::DriveLog log, replay::ReadDriveLog(o->dir));
                        IDI_RETURN_IF_ERROR(CheckReplayFiles(*o, log));
-                       const StopOnSignals signals;
+                       const StopSignals signals;
                        ReplayOptions ro = *o;
-                       ro.stop = &g_stop;
+                       ro.stop = signals.flag();
                        IDI_ASSIGN_OR_RETURN(const ReplayResult res, RunReplay(ro, log));
                        const Status reported = ReportReplay(res, "replay " + o->dir, *json);
-                       if (g_stop.load()) return Cancelled("replay: stopped by a signal (zero commanded)");
+                       if (signals.requested()) return Cancelled("replay: stopped by a signal (zero commanded)");
                        return reported;
                      });
   cmd->add_option("dir", o->dir, "the drive log folder (idi-rmp sim --record, or the vehicle's state_dir/logs)")

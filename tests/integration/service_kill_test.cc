@@ -163,7 +163,7 @@ TEST(ServiceKillTest, KillDuringACalibrationKeepsThePreviousOneAndARestartResume
     EXPECT_EQ(svc.Wait(std::chrono::seconds(60)), 0) << Slurp(log);
   }
   std::string text = Slurp(log);
-  EXPECT_NE(text.find("signal 15"), std::string::npos) << text;
+  EXPECT_NE(text.find("signal 15 (SIGTERM): stopping safely"), std::string::npos) << text;
   EXPECT_NE(text.find("devices commanded to stop"), std::string::npos) << "stopped at once, not when the job ended\n" << text;
   EXPECT_EQ(CurrentCalibration(dir / "state"), before) << "the previous calibration is current and intact";
   const nlohmann::json report = LastReport(dir / "state", "calibrate-robot2");

@@ -4,17 +4,14 @@
 #include <spdlog/spdlog.h>
 
 #include <atomic>
-#include <csignal>
 #include <iostream>
 #include <thread>
 
+#include "shared/runtime/stop_signals.h"
 #include "workcell/service/control_socket.h"
 
 namespace idi::workcell {
 namespace {
-
-std::atomic<int> g_signal{0};
-extern "C" void OnSignal(int sig) { g_signal = sig; }
 
 const char* kDefaultSocket = "/run/idi-workcell/control.sock";
 
@@ -43,16 +40,16 @@ Status RunService(const RunOptions& o, const CellFactory& make_cell) {
   IDI_ASSIGN_OR_RETURN(auto server, ControlServer::Start(co, [&](const ControlRequest& r) { return service.Handle(r); }));
   spdlog::info("idi-workcell service: backend {}, state in {}, operator socket {}", config.backend, config.state_dir,
                config.control_socket);
-  struct sigaction sa {};
-  sa.sa_handler = OnSignal;
-  sigemptyset(&sa.sa_mask);
-  sigaction(SIGTERM, &sa, nullptr);
-  sigaction(SIGINT, &sa, nullptr);
+  // SIGTERM (systemd's stop), SIGINT and SIGHUP (a closed terminal, unless started with nohup) stop it
+  // safely: the arms park and the jobs save what they have.
+  const StopSignals signals;
   std::atomic<bool> done{false};
   std::thread signal_watch([&] {
     while (!done) {
-      if (g_signal != 0) {
-        spdlog::warn("idi-workcell service: signal {}: stopping safely", g_signal.load());
+      if (signals.requested()) {
+        spdlog::warn("idi-workcell service: signal {} ({}): stopping safely",
+                     signals.signal(),
+                     StopSignals::Name(signals.signal()));
         service.RequestShutdown();
         return;
       }
