@@ -253,6 +253,13 @@ std::vector<std::string> FileKeys(const std::string& path) {
   return keys;
 }
 
+// Whether `path` (after its links) is a file that a write reaches in place, as WriteFileAtomically
+// does: one that exists and is neither a regular file nor a folder (a device, a FIFO).
+bool IsWrittenInPlace(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
+}
+
 }  // namespace
 
 bool SameFile(const std::string& a, const std::string& b) {
@@ -281,6 +288,9 @@ Status CheckDistinctFiles(const std::vector<NamedFile>& inputs,
       return InvalidArgument(command + ": " + out.option + " " + out.path + " is the same file as the input " +
                              in.option + " " + in.path + ": writing it would destroy the input (name another file)");
     }
+    // A device (/dev/null, a terminal) or a pipe is written in place, not replaced: two outputs sent
+    // there are both written (two discarded, or both on one terminal).
+    if (IsWrittenInPlace(out.path)) continue;
     for (const std::string& key : keys) {
       const auto it = output_of.find(key);
       if (it == output_of.end()) continue;

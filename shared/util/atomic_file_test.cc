@@ -209,6 +209,21 @@ TEST_F(AtomicFileTest, AnOutputMayNotBeAnInputOrAnotherOutput) {
                    .ok());
 }
 
+// /dev/null for two outputs discards both: a device is written in place, neither replaces the other. The
+// same through a link; a regular file twice is still refused.
+TEST_F(AtomicFileTest, TwoOutputsMayBothGoToADevice) {
+  ASSERT_TRUE(fs::is_character_file("/dev/null"));
+  fs::create_symlink("/dev/null", dir_ / "null-link");
+  EXPECT_TRUE(CheckDistinctFiles({}, {{"--can-log", "/dev/null"}, {"--png", "/dev/null"}}, "sim").ok());
+  EXPECT_TRUE(
+      CheckDistinctFiles({}, {{"--can-log", "/dev/null"}, {"--report", (dir_ / "null-link").string()}}, "sim").ok());
+  const std::string out = (dir_ / "out.json").string();
+  ASSERT_TRUE(WriteFileAtomically(out, "{}\n").ok());
+  EXPECT_FALSE(CheckDistinctFiles({}, {{"--report", out}, {"--can-log", out}}, "sim").ok());
+  // A device as an input and an output is still refused: reading and writing one stream at once.
+  EXPECT_FALSE(CheckDistinctFiles({{"--track", "/dev/null"}}, {{"--report", "/dev/null"}}, "sim").ok());
+}
+
 TEST_F(AtomicFileTest, ReadMissingFileIsNotFound) {
   const auto r = ReadFile((dir_ / "absent.yaml").string());
   ASSERT_FALSE(r.ok());
