@@ -1,6 +1,6 @@
 // SIGINT, SIGTERM and SIGHUP as a request to stop safely: a handler sets a flag that the command's loop
-// polls (the loop then commands zero, parks, saves and returns), instead of the default action, which
-// ends the process wherever it is.
+// polls (the loop then brings its devices to a stop, writes what it has and returns), instead of the
+// default action, which ends the process wherever it is.
 #pragma once
 
 #include <array>

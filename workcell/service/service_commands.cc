@@ -41,7 +41,8 @@ Status RunService(const RunOptions& o, const CellFactory& make_cell) {
   spdlog::info("idi-workcell service: backend {}, state in {}, operator socket {}", config.backend, config.state_dir,
                config.control_socket);
   // SIGTERM (systemd's stop), SIGINT and SIGHUP (a closed terminal, unless started with nohup) stop it
-  // safely: the arms park and the jobs save what they have.
+  // safely: the devices are commanded to stop and a running job is cancelled (a calibration keeps the
+  // readings it took).
   const StopSignals signals;
   std::atomic<bool> done{false};
   std::thread signal_watch([&] {
