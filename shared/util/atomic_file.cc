@@ -253,9 +253,11 @@ std::vector<std::string> FileKeys(const std::string& path) {
   return keys;
 }
 
-// Whether `path` (after its links) is a file that a write reaches in place, as WriteFileAtomically
-// does: one that exists and is neither a regular file nor a folder (a device, a FIFO).
+// Whether WriteFileAtomically writes `path` in place rather than replacing it: an open descriptor
+// (/dev/stdout, /dev/fd/N), or a file that exists (after its links) and is neither a regular file nor a
+// folder (a device, a FIFO).
 bool IsWrittenInPlace(const std::string& path) {
+  if (DescriptorOf(path) >= 0) return true;
   struct stat st {};
   return ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
 }
@@ -288,8 +290,8 @@ Status CheckDistinctFiles(const std::vector<NamedFile>& inputs,
       return InvalidArgument(command + ": " + out.option + " " + out.path + " is the same file as the input " +
                              in.option + " " + in.path + ": writing it would destroy the input (name another file)");
     }
-    // A device (/dev/null, a terminal) or a pipe is written in place, not replaced: two outputs sent
-    // there are both written (two discarded, or both on one terminal).
+    // A descriptor (/dev/stdout), a device (/dev/null) or a pipe is written in place, not replaced: two
+    // outputs sent there are both written (two discarded, or both on one stream).
     if (IsWrittenInPlace(out.path)) continue;
     for (const std::string& key : keys) {
       const auto it = output_of.find(key);

@@ -53,8 +53,8 @@ bool SameFile(const std::string& a, const std::string& b);
 
 // Refuses (InvalidArgument, `command` starting the message) an output that is the same file as an
 // input (writing it would destroy the input before or while it is read) or as another output (one
-// would replace the other; not for a device or pipe such as /dev/null, which is written in place).
-// Empty paths are skipped. Checked before any work, like CheckOutputFile.
+// would replace the other; not for a device, pipe or descriptor such as /dev/null or /dev/stdout,
+// which is written in place). Empty paths are skipped. Checked before any work, like CheckOutputFile.
 Status CheckDistinctFiles(const std::vector<NamedFile>& inputs,
                           const std::vector<NamedFile>& outputs,
                           const std::string& command);

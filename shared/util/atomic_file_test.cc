@@ -209,14 +209,21 @@ TEST_F(AtomicFileTest, AnOutputMayNotBeAnInputOrAnotherOutput) {
                    .ok());
 }
 
-// /dev/null for two outputs discards both: a device is written in place, neither replaces the other. The
-// same through a link; a regular file twice is still refused.
+// /dev/null for two outputs discards both: a device (or a descriptor) is written in place, neither
+// replaces the other. The same through a link; a regular file twice is still refused.
 TEST_F(AtomicFileTest, TwoOutputsMayBothGoToADevice) {
   ASSERT_TRUE(fs::is_character_file("/dev/null"));
   fs::create_symlink("/dev/null", dir_ / "null-link");
   EXPECT_TRUE(CheckDistinctFiles({}, {{"--can-log", "/dev/null"}, {"--png", "/dev/null"}}, "sim").ok());
   EXPECT_TRUE(
       CheckDistinctFiles({}, {{"--can-log", "/dev/null"}, {"--report", (dir_ / "null-link").string()}}, "sim").ok());
+  // An open descriptor by two names is written twice, in place, even when it is a regular file (stdout
+  // redirected to one).
+  const int fd = ::open((dir_ / "stream.txt").c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+  ASSERT_GE(fd, 0);
+  const std::string n = std::to_string(fd);
+  EXPECT_TRUE(CheckDistinctFiles({}, {{"--report", "/dev/fd/" + n}, {"--can-log", "/proc/self/fd/" + n}}, "sim").ok());
+  ::close(fd);
   const std::string out = (dir_ / "out.json").string();
   ASSERT_TRUE(WriteFileAtomically(out, "{}\n").ok());
   EXPECT_FALSE(CheckDistinctFiles({}, {{"--report", out}, {"--can-log", out}}, "sim").ok());
