@@ -85,9 +85,14 @@ Status ComputeGradients(const cv::Mat& image, double smoothing_sigma_px, Gradien
   out->level_scale = depth == CV_16U ? 257.0 : 1.0;
   out->smoothing_sigma_px = smoothing_sigma_px;
   image.convertTo(out->raw, CV_32F);
+  // The float Gaussian of cv::GaussianBlur (its kernel, separable, replicated border), applied to the
+  // image as it comes: an 8-bit image is read a byte a pixel instead of through its float copy (this
+  // function took 0.38 instead of 0.43 ms on the 640 x 480 object scene of features_bench E). The result
+  // is the same to the bit from 7 taps on (sigma >= 0.67); with 5 it differs in float rounding (5e-5
+  // grey levels).
   const int radius = std::max(1, static_cast<int>(std::ceil(3.0 * smoothing_sigma_px)));
-  cv::GaussianBlur(out->raw, out->smooth, cv::Size(2 * radius + 1, 2 * radius + 1), smoothing_sigma_px,
-                   smoothing_sigma_px, cv::BORDER_REPLICATE);
+  const cv::Mat kernel = cv::getGaussianKernel(2 * radius + 1, smoothing_sigma_px, CV_32F);
+  cv::sepFilter2D(image, out->smooth, CV_32F, kernel, kernel, cv::Point(-1, -1), 0, cv::BORDER_REPLICATE);
 
   const int w = image.cols, h = image.rows;
   out->gx.create(h, w, CV_32F);
