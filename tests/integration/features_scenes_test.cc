@@ -49,10 +49,46 @@ test::CornerScore ScoreScenes(bool clutter, const FeatureOptions& options, doubl
       auto r = det->Detect(*img);
       EXPECT_TRUE(r.ok()) << r.status().ToString();
       if (!r.ok()) continue;
-      score.Add(test::ScoreCorners(truth, *r, [](const Vec2d& px) { return px; }));
+      const auto same_pixel = [](const Vec2d& px) { return px; };  // no distortion
+      score.Add(test::ScoreCorners(truth, *r, same_pixel, blur));
     }
   }
   return score;
+}
+
+sim::TruthLine Line(int id, const Vec2d& a, const Vec2d& b, double contrast_dn = 40) {
+  sim::TruthLine l;
+  l.id = id;
+  l.p1_px = a;
+  l.p2_px = b;
+  l.length_px = (b - a).norm();
+  l.contrast_dn = contrast_dn;
+  return l;
+}
+
+// The benchmark's "resolvable" (features_bench D's second table): a line needs 20 px that keep more than
+// 2 sigma_b + 1 px from every other edge of >= 10 DN.
+TEST(FeatureScenesTest, AnEdgeBesideAnotherIsResolvableOnlyWhereTheyPartByMoreThanTheBlur) {
+  const sim::TruthLine edge = Line(1, Vec2d(100, 100), Vec2d(100, 160));
+  // A parallel edge 2.5 px away over the whole length: one ridge at sigma_b 1 (clearance 3 px).
+  EXPECT_FALSE(test::Resolvable(edge, {edge, Line(2, Vec2d(102.5, 100), Vec2d(102.5, 160))}, 1.0));
+  // 4 px away it is apart at sigma_b 1, not at sigma_b 2 (clearance 5 px).
+  const std::vector<sim::TruthLine> four_px = {edge, Line(2, Vec2d(104, 100), Vec2d(104, 160))};
+  EXPECT_TRUE(test::Resolvable(edge, four_px, 1.0));
+  EXPECT_FALSE(test::Resolvable(edge, four_px, 2.0));
+  // A faint edge beside it does not count (under 10 DN).
+  EXPECT_TRUE(test::Resolvable(edge, {edge, Line(2, Vec2d(101, 100), Vec2d(101, 160), 6)}, 1.0));
+  // A right-angled corner: only the first 3 px are near the other leg.
+  EXPECT_TRUE(test::Resolvable(edge, {edge, Line(2, Vec2d(100, 100), Vec2d(160, 100))}, 1.0));
+  // A 6 deg wedge of 40 px legs: the legs part by 3 px only 29 px from the corner, leaving 11 px.
+  const double tan6 = std::tan(6.0 * 3.14159265358979323846 / 180);
+  const sim::TruthLine leg = Line(1, Vec2d(100, 100), Vec2d(100, 140));
+  EXPECT_FALSE(test::Resolvable(leg, {leg, Line(2, Vec2d(100, 100), Vec2d(100 + 40 * tan6, 140))}, 1.0));
+  // The same angle as a bend (legs on either side of the vertex) keeps them apart.
+  EXPECT_TRUE(test::Resolvable(leg, {leg, Line(2, Vec2d(100, 100), Vec2d(100 + 40 * tan6, 60))}, 1.0));
+  // Shorter than 20 px: never.
+  const sim::TruthLine stub = Line(1, Vec2d(100, 100), Vec2d(100, 118));
+  EXPECT_FALSE(test::Resolvable(stub, {stub}, 1.0));
 }
 
 std::string Misses(const test::CornerScore& s) {

@@ -108,6 +108,10 @@ void CornerScore::Add(const CornerScore& o) {
   miss_other += o.miss_other;
   nearly_collinear += o.nearly_collinear;
   nearly_collinear_missed += o.nearly_collinear_missed;
+  resolvable += o.resolvable;
+  resolvable_found += o.resolvable_found;
+  resolvable_angled += o.resolvable_angled;
+  resolvable_angled_found += o.resolvable_angled_found;
   errors_px.insert(errors_px.end(), o.errors_px.begin(), o.errors_px.end());
 }
 
@@ -121,6 +125,35 @@ std::vector<const sim::TruthLine*> CountedLines(const sim::TruthJunction& j,
     if (it != lines.end() && CountsForCorners(*it->second)) counted.push_back(it->second);
   }
   return counted;
+}
+
+bool Resolvable(const sim::TruthLine& line, const std::vector<sim::TruthLine>& all, double blur_sigma_px) {
+  const double clearance = 2.0 * blur_sigma_px + 1.0;
+  const Vec2d a = line.p1_px, b = line.p2_px;
+  const double length = (b - a).norm();
+  if (!(length >= kResolvableRunPx)) return false;
+  const auto distance_to_chord = [](const Vec2d& q, const Vec2d& p1, const Vec2d& p2) {
+    const Vec2d d = p2 - p1;
+    const double len2 = d.squaredNorm();
+    const double s = len2 > 0 ? std::clamp((q - p1).dot(d) / len2, 0.0, 1.0) : 0.0;
+    return (q - (p1 + s * d)).norm();
+  };
+  const int samples = static_cast<int>(std::floor(length)) + 1;
+  double run = 0, best = 0;
+  for (int i = 0; i < samples; ++i) {
+    const Vec2d q = a + (b - a) * (static_cast<double>(i) / (samples - 1));
+    bool clear = true;
+    for (const sim::TruthLine& other : all) {
+      if (other.id == line.id || !(std::fabs(other.contrast_dn) >= 10)) continue;
+      if (distance_to_chord(q, other.p1_px, other.p2_px) <= clearance) {
+        clear = false;
+        break;
+      }
+    }
+    run = clear ? run + (i > 0 ? length / (samples - 1) : 0.0) : 0.0;
+    best = std::max(best, run);
+  }
+  return best >= kResolvableRunPx;
 }
 
 double WidestCos(const std::vector<const sim::TruthLine*>& counted) {
@@ -148,7 +181,8 @@ const EmplLine* MatchTruthLine(const FeatureResult& result, const Vec2d& normal,
 
 CornerScore ScoreCorners(const sim::GroundTruth& truth,
                          const FeatureResult& result,
-                         const std::function<Vec2d(const Vec2d&)>& to_fit) {
+                         const std::function<Vec2d(const Vec2d&)>& to_fit,
+                         double blur_sigma_px) {
   CornerScore s;
   std::map<int, const sim::TruthLine*> lines;
   for (const sim::TruthLine& l : truth.lines) lines[l.id] = &l;
@@ -164,6 +198,17 @@ CornerScore ScoreCorners(const sim::GroundTruth& truth,
     double bd = 2.0;
     for (const IdiPoint& p : result.points) bd = std::min(bd, (p.xy - t).norm());
     s.nearly_collinear_missed += nearly_collinear && !(bd < 2.0) ? 1 : 0;
+    const auto resolvable_lines = std::count_if(counted.begin(), counted.end(), [&](const sim::TruthLine* l) {
+      return Resolvable(*l, truth.lines, blur_sigma_px);
+    });
+    if (resolvable_lines >= 2) {
+      ++s.resolvable;
+      s.resolvable_found += bd < 2.0 ? 1 : 0;
+      if (!nearly_collinear) {
+        ++s.resolvable_angled;
+        s.resolvable_angled_found += bd < 2.0 ? 1 : 0;
+      }
+    }
     if (bd < 2.0) {
       ++s.found;
       s.errors_px.push_back(bd);

@@ -34,14 +34,20 @@ struct CornerScore {
   // from lines at less than IdiOptions::min_angle_deg (10 by default), and such a bend is usually fitted
   // as one line.
   int nearly_collinear = 0, nearly_collinear_missed = 0;
+  // Corners with at least two resolvable lines (see Resolvable), and how many of them were found; the
+  // same for those of them that are not nearly collinear either.
+  int resolvable = 0, resolvable_found = 0;
+  int resolvable_angled = 0, resolvable_angled_found = 0;
   std::vector<double> errors_px;  // of the found corners
 
   void Add(const CornerScore& o);
 };
-// `to_fit` maps truth pixels into the detector's coordinates (undistorted when it models distortion).
+// `to_fit` maps truth pixels into the detector's coordinates (undistorted when it models distortion);
+// `blur_sigma_px` is the PSF the image was rendered with (for CornerScore::resolvable).
 CornerScore ScoreCorners(const sim::GroundTruth& truth,
                          const FeatureResult& result,
-                         const std::function<Vec2d(const Vec2d&)>& to_fit);
+                         const std::function<Vec2d(const Vec2d&)>& to_fit,
+                         double blur_sigma_px = 1.0);
 
 inline constexpr double kNearlyCollinearDeg = 10.0;
 
@@ -50,6 +56,14 @@ bool CountsForCorners(const sim::TruthLine& line);
 // The lines of junction `j` that count for a corner, looked up by id in `lines` (the truth's lines).
 std::vector<const sim::TruthLine*> CountedLines(const sim::TruthJunction& j,
                                                 const std::map<int, const sim::TruthLine*>& lines);
+// Whether `line` can be told apart from the other edges of the image: it has a stretch of at least
+// kResolvableRunPx px all of whose points lie more than 2 blur_sigma_px + 1 px from every other true
+// line of >= 10 DN contrast (any length). Closer than that the two blurred steps make one gradient
+// ridge: an L-bracket's plate seen edge-on, the two legs of a slight bend near their corner. Distances
+// are taken in the image to the straight chords between the lines' ends (under distortion a line bows
+// by a pixel or so from its chord).
+bool Resolvable(const sim::TruthLine& line, const std::vector<sim::TruthLine>& all, double blur_sigma_px);
+inline constexpr double kResolvableRunPx = 20.0;
 // The cosine of the widest angle between two of `counted` (in the image; 1 for fewer than two).
 double WidestCos(const std::vector<const sim::TruthLine*>& counted);
 // The detected line that explains a true one (within 2 deg, and 2 px at the true segment's middle), if any.
