@@ -81,12 +81,21 @@ bool HoughLineFinder::AnyEdgeBlock(int x0, int y0, int x1, int y1) const {
 void HoughLineFinder::Walk(const GradientImages& g, const EdgeMap& edges, const PixelGeometry& geometry,
                            const Vec2d& normal, double offset, double t_min, double t_max, std::vector<Hit>* hits) {
   hits->clear();
-  ++walk_id_;
   const int w = g.width(), h = g.height();
   const Vec2d dir = LineDirection(normal);
   const Vec2d foot = normal * offset;
   const bool horizontal = std::fabs(dir.x()) >= std::fabs(dir.y());
   const bool ident = geometry.identity();
+  if (!ident) {
+    // A new mark for this walk's pixels. The count would overflow after 2^31 walks (a week of video at
+    // 30 frames a second and a hundred walks a frame): the marks start again from a clean image first.
+    if (visit_.rows != h || visit_.cols != w || walk_id_ == std::numeric_limits<int>::max()) {
+      visit_.create(h, w, CV_32S);
+      visit_.setTo(0);
+      walk_id_ = 0;
+    }
+    ++walk_id_;
+  }
   const double step = ident ? 1.0 : 0.8;
   const int reach = static_cast<int>(std::ceil(options_.band_px));
   // The line is walked in chunks of kChunk steps; a chunk whose band (with a margin for rounding and
@@ -242,9 +251,6 @@ std::vector<HoughSegment> HoughLineFinder::Find(const GradientImages& g, EdgeMap
   if (index_.rows != h || index_.cols != w) {
     index_.create(h, w, CV_32S);
     index_.setTo(-1);
-    visit_.create(h, w, CV_32S);
-    visit_.setTo(0);
-    walk_id_ = 0;
   }
 
   // Votes of each edge pixel, restricted to +-window around its gradient direction.

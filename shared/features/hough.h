@@ -48,7 +48,7 @@ class HoughLineFinder {
   std::vector<float> ex_, ey_;
   std::vector<int> bin_;
   cv::Mat index_;  // CV_32S: edge index of each pixel, -1 elsewhere
-  cv::Mat visit_;  // CV_32S: last walk that looked at the pixel (walks of distorted lines only)
+  cv::Mat visit_;  // CV_32S: last walk that looked at the pixel (walks of distorted lines only; made by the first)
   // Which 8 x 8 blocks of the image hold an edge pixel: a walk steps over the stretches of its line
   // whose band crosses only empty blocks.
   static constexpr int kBlockShift = 3;
