@@ -86,6 +86,13 @@ TEST(FeatureScenesTest, AnEdgeBesideAnotherIsResolvableOnlyWhereTheyPartByMoreTh
   EXPECT_FALSE(test::Resolvable(leg, {leg, Line(2, Vec2d(100, 100), Vec2d(100 + 40 * tan6, 140))}, 1.0));
   // The same angle as a bend (legs on either side of the vertex) keeps them apart.
   EXPECT_TRUE(test::Resolvable(leg, {leg, Line(2, Vec2d(100, 100), Vec2d(100 + 40 * tan6, 60))}, 1.0));
+  // A leg ending at a right-angled corner is near the other leg for its first 3 px (samples at 0-3 px):
+  // from 4 to 23 px it is clear over 19 px, not enough; to 24 px, over 20 px.
+  const sim::TruthLine foot = Line(2, Vec2d(100, 100), Vec2d(160, 100));
+  const sim::TruthLine leg23 = Line(1, Vec2d(100, 100), Vec2d(100, 123));
+  const sim::TruthLine leg24 = Line(1, Vec2d(100, 100), Vec2d(100, 124));
+  EXPECT_FALSE(test::Resolvable(leg23, {leg23, foot}, 1.0));
+  EXPECT_TRUE(test::Resolvable(leg24, {leg24, foot}, 1.0));
   // Shorter than 20 px: never.
   const sim::TruthLine stub = Line(1, Vec2d(100, 100), Vec2d(100, 118));
   EXPECT_FALSE(test::Resolvable(stub, {stub}, 1.0));

@@ -115,7 +115,9 @@ void CornerScore::Add(const CornerScore& o) {
   errors_px.insert(errors_px.end(), o.errors_px.begin(), o.errors_px.end());
 }
 
-bool CountsForCorners(const sim::TruthLine& line) { return line.length_px >= 20 && std::fabs(line.contrast_dn) >= 10; }
+bool CountsForCorners(const sim::TruthLine& line) {
+  return line.length_px >= 20 && std::fabs(line.contrast_dn) >= kVisibleContrastDn;
+}
 
 std::vector<const sim::TruthLine*> CountedLines(const sim::TruthJunction& j,
                                                 const std::map<int, const sim::TruthLine*>& lines) {
@@ -138,22 +140,24 @@ bool Resolvable(const sim::TruthLine& line, const std::vector<sim::TruthLine>& a
     const double s = len2 > 0 ? std::clamp((q - p1).dot(d) / len2, 0.0, 1.0) : 0.0;
     return (q - (p1 + s * d)).norm();
   };
+  // Samples about 1 px apart; a stretch of k clear samples in a row is (k - 1) steps long.
   const int samples = static_cast<int>(std::floor(length)) + 1;
-  double run = 0, best = 0;
+  const double step = length / (samples - 1);
+  int clear_in_row = 0, best = 0;
   for (int i = 0; i < samples; ++i) {
     const Vec2d q = a + (b - a) * (static_cast<double>(i) / (samples - 1));
     bool clear = true;
     for (const sim::TruthLine& other : all) {
-      if (other.id == line.id || !(std::fabs(other.contrast_dn) >= 10)) continue;
+      if (other.id == line.id || !(std::fabs(other.contrast_dn) >= kVisibleContrastDn)) continue;
       if (distance_to_chord(q, other.p1_px, other.p2_px) <= clearance) {
         clear = false;
         break;
       }
     }
-    run = clear ? run + (i > 0 ? length / (samples - 1) : 0.0) : 0.0;
-    best = std::max(best, run);
+    clear_in_row = clear ? clear_in_row + 1 : 0;
+    best = std::max(best, clear_in_row);
   }
-  return best >= kResolvableRunPx;
+  return best > 0 && (best - 1) * step >= kResolvableRunPx;
 }
 
 double WidestCos(const std::vector<const sim::TruthLine*>& counted) {

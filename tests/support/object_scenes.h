@@ -51,15 +51,16 @@ CornerScore ScoreCorners(const sim::GroundTruth& truth,
 
 inline constexpr double kNearlyCollinearDeg = 10.0;
 
-// Whether a true line counts for a corner (visible over >= 20 px with >= 10 DN contrast).
+// Whether a true line counts for a corner (visible over >= 20 px with >= kVisibleContrastDn contrast).
 bool CountsForCorners(const sim::TruthLine& line);
+inline constexpr double kVisibleContrastDn = 10.0;
 // The lines of junction `j` that count for a corner, looked up by id in `lines` (the truth's lines).
 std::vector<const sim::TruthLine*> CountedLines(const sim::TruthJunction& j,
                                                 const std::map<int, const sim::TruthLine*>& lines);
 // Whether `line` can be told apart from the other edges of the image: it has a stretch of at least
 // kResolvableRunPx px all of whose points lie more than 2 blur_sigma_px + 1 px from every other true
-// line of >= 10 DN contrast (any length). Closer than that the two blurred steps make one gradient
-// ridge: an L-bracket's plate seen edge-on, the two legs of a slight bend near their corner. Distances
+// line of >= kVisibleContrastDn contrast (any length). Closer than that the two blurred steps make one
+// gradient ridge: an L-bracket's plate seen edge-on, the two sides of a thin wedge. Distances
 // are taken in the image to the straight chords between the lines' ends (under distortion a line bows
 // by a pixel or so from its chord).
 bool Resolvable(const sim::TruthLine& line, const std::vector<sim::TruthLine>& all, double blur_sigma_px);
